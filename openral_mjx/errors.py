@@ -1,0 +1,19 @@
+"""Typed errors: every user mistake is a `ConfigError` naming the bad value and the valid ones."""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+
+
+class ConfigError(ValueError):
+    """A user-facing configuration mistake (unknown name, bad value, missing file).
+
+    The CLI prints its message on one line and exits with code 2; library callers catch it
+    like any `ValueError`.
+    """
+
+
+def unknown(kind: str, value: object, valid: Iterable[object]) -> ConfigError:
+    """Build the canonical "unknown X 'v'; valid: a, b, c" error."""
+    choices = ", ".join(str(v) for v in valid) or "(none)"
+    return ConfigError(f"unknown {kind} {value!r}; valid: {choices}")

@@ -1,0 +1,84 @@
+"""The physics-backend contract: advance one env's state, report the quantities task logic reads.
+
+Task logic (reset sampling, observation, reward, success) never touches backend internals; it
+reads `Quantities`, which every backend produces the same way. Backends are single-env and
+pure, so the runner batches them with `jax.vmap` like any other JAX function.
+"""
+
+from __future__ import annotations
+
+import abc
+import dataclasses
+from typing import Any, ClassVar
+
+import jax
+import jax.numpy as jnp
+import mujoco
+from flax import struct
+
+
+@dataclasses.dataclass(frozen=True)
+class QuantitySpec:
+    """Which named bodies and sites the task logic reads (their world poses)."""
+
+    bodies: tuple[str, ...] = ()
+    sites: tuple[str, ...] = ()
+
+
+@struct.dataclass
+class Quantities:
+    """Backend-agnostic physics readout of one env, float32, world frame (quaternions w-x-y-z)."""
+
+    qpos: jax.Array  # (nq,)
+    qvel: jax.Array  # (nv,)
+    body_pos: jax.Array  # (len(spec.bodies), 3)
+    body_quat: jax.Array  # (len(spec.bodies), 4)
+    site_pos: jax.Array  # (len(spec.sites), 3)
+    ok: jax.Array  # () bool: False once the state went non-finite or the engine reset it
+
+
+@struct.dataclass
+class PhysicsState:
+    """One env's physics: backend-specific `data` plus the common `quantities`."""
+
+    data: Any
+    quantities: Quantities
+
+
+class PhysicsBackend(abc.ABC):
+    """Advances single-env physics states; `vmap` batches them.
+
+    Args:
+        spec: the composed scene (not modified; backends compile their own copy).
+        quantities: the bodies and sites to report.
+        n_substeps: physics steps per control step (control held constant across them).
+    """
+
+    name: ClassVar[str]
+
+    def __init__(self, spec: mujoco.MjSpec, quantities: QuantitySpec, n_substeps: int) -> None:
+        self.quantity_spec = quantities
+        self.n_substeps = n_substeps
+        self.mj_model = spec.copy().compile()
+        self.body_ids = tuple(self.mj_model.body(n).id for n in quantities.bodies)
+        self.site_ids = tuple(self.mj_model.site(n).id for n in quantities.sites)
+
+    @abc.abstractmethod
+    def init(self, qpos: jax.Array, qvel: jax.Array) -> PhysicsState:
+        """A state at time 0 with the given joint positions and velocities (forward-evaluated)."""
+
+    @abc.abstractmethod
+    def step(self, state: PhysicsState, ctrl: jax.Array) -> PhysicsState:
+        """Hold `ctrl` for `n_substeps` physics steps."""
+
+    @property
+    def control_dt(self) -> float:
+        return float(self.mj_model.opt.timestep) * self.n_substeps
+
+    def describe(self) -> dict[str, Any]:
+        """Settings recorded in reports."""
+        return {"name": self.name, "n_substeps": self.n_substeps}
+
+
+def all_finite(*arrays: jax.Array) -> jax.Array:
+    return jnp.all(jnp.stack([jnp.all(jnp.isfinite(a)) for a in arrays]))

@@ -1,0 +1,197 @@
+"""MuJoCo C physics inside the jitted loop, through one host callback per batched control step.
+
+The whole batch crosses into `mujoco.rollout.Rollout` (a persistent C++ thread pool) in a single
+`jax.pure_callback`; vmap hands the callback the full batch (`vmap_method="broadcast_all"`).
+The float64 MuJoCo state travels through JAX losslessly as its raw bits (`uint32` pairs), so
+the simulation is exactly MuJoCo C's whatever JAX's default float width. Body and site poses
+come back as `framepos`/`framequat` sensors added to this backend's private copy of the model.
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import mujoco
+import numpy as np
+from mujoco import rollout
+
+from openral_mjx.errors import ConfigError
+from openral_mjx.physics.base import PhysicsBackend, PhysicsState, Quantities, QuantitySpec
+
+_FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS
+
+
+def default_threads() -> int:
+    """All cores this process may use."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # pragma: no cover - non-Linux
+        return os.cpu_count() or 1
+
+
+class CBackend(PhysicsBackend):
+    """MuJoCo's C engine (float64), multithreaded over the batch with `mujoco.rollout`.
+
+    Args:
+        threads: worker threads of the rollout pool (default: all available cores).
+    """
+
+    name = "c"
+
+    def __init__(
+        self,
+        spec: mujoco.MjSpec,
+        quantities: QuantitySpec,
+        n_substeps: int,
+        threads: int | None = None,
+    ) -> None:
+        super().__init__(spec, quantities, n_substeps)
+        if threads is not None and threads < 1:
+            raise ConfigError(f"threads must be >= 1, got {threads}")
+        self.threads = threads or default_threads()
+        self._model = self._model_with_pose_sensors(spec, quantities)
+        m = self._model
+        self.nq, self.nv, self.nu = m.nq, m.nv, m.nu
+        self.nstate = mujoco.mj_stateSize(m, _FULL)
+        # Offsets into the FULLPHYSICS state vector: components are stored in bit order.
+        full = int(_FULL)
+        self._off_qpos = mujoco.mj_stateSize(m, full & (int(mujoco.mjtState.mjSTATE_QPOS) - 1))
+        self._off_qvel = self._off_qpos + self.nq
+        self._nsens = m.nsensordata
+        self._pool: rollout.Rollout | None = None
+        self._datas: list[mujoco.MjData] = []
+        self._lock = threading.Lock()
+
+    def _model_with_pose_sensors(
+        self, spec: mujoco.MjSpec, quantities: QuantitySpec
+    ) -> mujoco.MjModel:
+        """Compile a copy whose only sensors are the pose readouts (in a fixed order)."""
+        s = spec.copy()
+        for sensor in list(s.sensors):
+            s.delete(sensor)
+        for name in quantities.bodies:
+            for kind in (mujoco.mjtSensor.mjSENS_FRAMEPOS, mujoco.mjtSensor.mjSENS_FRAMEQUAT):
+                s.add_sensor(type=kind, objtype=mujoco.mjtObj.mjOBJ_XBODY, objname=name)
+        for name in quantities.sites:
+            s.add_sensor(
+                type=mujoco.mjtSensor.mjSENS_FRAMEPOS, objtype=mujoco.mjtObj.mjOBJ_SITE, objname=name
+            )
+        return s.compile()
+
+    # ---- host side (numpy, float64) -------------------------------------------------------
+
+    def _ensure_pool(self) -> rollout.Rollout:
+        if self._pool is None:
+            self._pool = rollout.Rollout(nthread=self.threads)
+            self._datas = [mujoco.MjData(self._model) for _ in range(self.threads)]
+        return self._pool
+
+    def close(self) -> None:
+        """Shut the thread pool down (it is re-created on next use)."""
+        if self._pool is not None:
+            self._pool.close()
+            self._pool = None
+
+    def __del__(self) -> None:  # pragma: no cover - interpreter shutdown order varies
+        try:
+            self.close()
+        except Exception:
+            pass
+
+    def _readout(self, states: np.ndarray, sens: np.ndarray, ok: np.ndarray) -> tuple:
+        nb, ns = len(self.quantity_spec.bodies), len(self.quantity_spec.sites)
+        body = sens[:, : 7 * nb].reshape(-1, nb, 7)
+        site = sens[:, 7 * nb : 7 * nb + 3 * ns].reshape(-1, ns, 3)
+        qpos = states[:, self._off_qpos : self._off_qpos + self.nq]
+        qvel = states[:, self._off_qvel : self._off_qvel + self.nv]
+        ok = ok & np.isfinite(states).all(axis=1) & np.isfinite(sens).all(axis=1)
+        f32 = np.float32
+        return (
+            states.view(np.uint32).copy(),
+            qpos.astype(f32),
+            qvel.astype(f32),
+            body[:, :, :3].astype(f32),
+            body[:, :, 3:].astype(f32),
+            site.astype(f32),
+            ok,
+        )
+
+    def _host_init(self, qpos: np.ndarray, qvel: np.ndarray) -> tuple:
+        lead = qpos.shape[:-1]
+        qpos = np.asarray(qpos, np.float64).reshape(-1, self.nq)
+        qvel = np.asarray(qvel, np.float64).reshape(-1, self.nv)
+        n = qpos.shape[0]
+        m, d = self._model, mujoco.MjData(self._model)
+        states = np.empty((n, self.nstate))
+        sens = np.empty((n, self._nsens))
+        for i in range(n):  # reset only, once per chunk: not on the stepping hot path
+            mujoco.mj_resetData(m, d)
+            d.qpos[:], d.qvel[:] = qpos[i], qvel[i]
+            mujoco.mj_forward(m, d)
+            mujoco.mj_getState(m, d, states[i], _FULL)
+            sens[i] = d.sensordata
+        out = self._readout(states, sens, np.ones(n, bool))
+        return tuple(o.reshape(*lead, *o.shape[1:]) for o in out)
+
+    def _host_step(self, bits: np.ndarray, ctrl: np.ndarray) -> tuple:
+        lead = ctrl.shape[:-1]
+        states = np.ascontiguousarray(bits, np.uint32).reshape(-1, 2 * self.nstate)
+        states = states.view(np.float64)
+        ctrl = np.nan_to_num(np.asarray(ctrl, np.float64).reshape(-1, 1, self.nu))
+        with self._lock:
+            out, sens = self._ensure_pool().rollout(
+                self._model, self._datas, states, ctrl, nstep=self.n_substeps
+            )
+        last = np.ascontiguousarray(out[:, -1])
+        # MuJoCo resets a state it finds unstable (time goes back to 0): that env diverged.
+        expected = states[:, 0] + self.n_substeps * self._model.opt.timestep
+        ok = np.abs(last[:, 0] - expected) < 0.5 * self._model.opt.timestep
+        res = self._readout(last, np.ascontiguousarray(sens[:, -1]), ok)
+        return tuple(o.reshape(*lead, *o.shape[1:]) for o in res)
+
+    # ---- JAX side --------------------------------------------------------------------------
+
+    def _result_shapes(self, lead: tuple[int, ...]) -> tuple:
+        nb, ns = len(self.quantity_spec.bodies), len(self.quantity_spec.sites)
+        f32 = jnp.float32
+        sd = jax.ShapeDtypeStruct
+        return (
+            sd((*lead, 2 * self.nstate), jnp.uint32),
+            sd((*lead, self.nq), f32),
+            sd((*lead, self.nv), f32),
+            sd((*lead, nb, 3), f32),
+            sd((*lead, nb, 4), f32),
+            sd((*lead, ns, 3), f32),
+            sd((*lead, ), jnp.bool_),
+        )
+
+    @staticmethod
+    def _pack(out: Any) -> PhysicsState:
+        bits, qpos, qvel, bpos, bquat, spos, ok = out
+        q = Quantities(qpos=qpos, qvel=qvel, body_pos=bpos, body_quat=bquat, site_pos=spos, ok=ok)
+        return PhysicsState(data=bits, quantities=q)
+
+    def init(self, qpos: jax.Array, qvel: jax.Array) -> PhysicsState:
+        out = jax.pure_callback(
+            self._host_init, self._result_shapes(()), qpos, qvel, vmap_method="broadcast_all"
+        )
+        return self._pack(out)
+
+    def step(self, state: PhysicsState, ctrl: jax.Array) -> PhysicsState:
+        out = jax.pure_callback(
+            self._host_step,
+            self._result_shapes(()),
+            state.data,
+            ctrl.astype(jnp.float32),
+            vmap_method="broadcast_all",
+        )
+        new = self._pack(out)
+        q = new.quantities
+        return new.replace(quantities=q.replace(ok=q.ok & state.quantities.ok))
+
+    def describe(self) -> dict[str, Any]:
+        return {**super().describe(), "threads": self.threads}

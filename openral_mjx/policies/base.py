@@ -1,0 +1,26 @@
+"""The JAX policy contract: two pure functions, so policy and physics fuse into one `lax.scan`.
+
+`init(key, obs_spec) -> (params, policy_state)` runs once per evaluation (params are shared by
+all envs; the runner broadcasts `policy_state` to every env). `act(params, policy_state, obs,
+key) -> (action, policy_state)` is single-env; the runner vmaps it.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable
+from typing import Any
+
+import jax
+
+InitFn = Callable[[jax.Array, jax.ShapeDtypeStruct], tuple[Any, Any]]
+ActFn = Callable[[Any, Any, jax.Array, jax.Array], tuple[jax.Array, Any]]
+
+
+@dataclasses.dataclass(frozen=True)
+class Policy:
+    """A named pair of pure functions (see module docstring)."""
+
+    name: str
+    init: InitFn
+    act: ActFn

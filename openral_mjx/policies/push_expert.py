@@ -1,0 +1,98 @@
+"""Scripted push expert for any arm with an end-effector site (differential IK on `jax` FK).
+
+A three-phase state machine on the observation: (0) go above a pre-push point behind the cube
+on the cube->goal line, (1) descend to push height, (2) push the cube along the line, keeping
+the tool just behind it; re-approach when the tool slips sideways off the cube or passes it;
+(3) stop once the cube is on the goal. Cartesian targets become joint targets by one damped
+least-squares step per control step, with a secondary task keeping the tool pointing down.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import jax
+import jax.numpy as jnp
+
+from openral_mjx.policies.base import Policy
+
+ForwardKinematics = Callable[[jax.Array], tuple[jax.Array, jax.Array]]
+
+
+def push_expert(
+    layout: dict[str, tuple[int, int]],
+    fk: ForwardKinematics,
+    actuator_joint: jax.Array,
+    low: jax.Array,
+    high: jax.Array,
+    *,
+    table_z: float,
+    cube_half: float,
+    goal_radius: float,
+    tool_radius: float = 0.01,
+    max_step_m: float = 0.02,
+    orient_weight: float = 0.01,
+    damping: float = 1e-4,
+) -> Policy:
+    """Build the expert.
+
+    Args:
+        layout: the scene's observation slices (`joint_pos`, `ee_pos`, `cube_pos`, `goal_xy`).
+        fk: robot joint positions -> (end-effector position, tool axis), world frame.
+        actuator_joint: for each actuator, the index of its joint in `joint_pos`.
+        low, high: actuator control limits.
+    """
+
+    def part(obs: jax.Array, name: str) -> jax.Array:
+        start, size = layout[name]
+        return obs[start : start + size]
+
+    hover_z = table_z + 2 * cube_half + 0.04
+    push_z = table_z + 0.9 * cube_half
+    standoff = cube_half + tool_radius + 0.008
+
+    def init(key, obs_spec):
+        del key, obs_spec
+        return None, jnp.zeros((), jnp.int32)
+
+    def act(params, phase, obs, key):
+        del params, key
+        q, ee = part(obs, "joint_pos"), part(obs, "ee_pos")
+        cube, goal = part(obs, "cube_pos")[:2], part(obs, "goal_xy")
+        to_goal = goal - cube
+        dist = jnp.linalg.norm(to_goal)
+        d = to_goal / jnp.maximum(dist, 1e-6)
+        pre = cube - d * standoff
+        rel = ee[:2] - cube
+        along = rel @ d
+        lateral = d[0] * rel[1] - d[1] * rel[0]
+        near_pre = jnp.linalg.norm(ee[:2] - pre) < 0.01
+
+        phase = jnp.where((phase == 0) & near_pre, 1, phase)
+        phase = jnp.where((phase == 1) & (ee[2] - push_z < 0.008), 2, phase)
+        lost = (jnp.abs(lateral) > 0.012) | (along > -cube_half)
+        phase = jnp.where((phase == 2) & lost, 0, phase)
+        phase = jnp.where((phase == 2) & (dist < 0.4 * goal_radius), 3, phase)
+        phase = jnp.where((phase == 3) & (dist > 0.9 * goal_radius), 0, phase)
+
+        high_first = ee[2] < hover_z - 0.01
+        approach = jnp.where(high_first & ~near_pre, jnp.append(ee[:2], hover_z),
+                             jnp.append(pre, hover_z))
+        targets = jnp.stack([
+            approach,
+            jnp.append(pre, push_z),
+            jnp.append(cube - d * (standoff - 0.012), push_z),
+            jnp.append(ee[:2] - d * 0.002, ee[2]),
+        ])
+        target = targets[phase]
+
+        (pos, axis), (jp, ja) = fk(q), jax.jacfwd(fk)(q)
+        err = target - pos
+        err = err * jnp.minimum(1.0, max_step_m / (jnp.linalg.norm(err) + 1e-9))
+        axis_err = jnp.array([0.0, 0.0, -1.0]) - axis
+        a = jp.T @ jp + orient_weight * ja.T @ ja + damping * jnp.eye(q.shape[0])
+        dq = jnp.linalg.solve(a, jp.T @ err + orient_weight * ja.T @ axis_err)
+        action = jnp.clip((q + dq)[actuator_joint], low, high)
+        return action, phase
+
+    return Policy("scripted", init, act)

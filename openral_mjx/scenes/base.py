@@ -1,0 +1,88 @@
+"""The scene contract: `reset(key) -> State`, `step(state, action) -> State`, one env, pure JAX.
+
+Batching is `jax.vmap` outside the scene (the runner's job). Scenes compose an `MjSpec`, pick
+a physics backend for it, and express reset sampling, observation, reward and success on the
+backend-agnostic `Quantities`, so one scene definition runs on every backend.
+"""
+
+from __future__ import annotations
+
+import abc
+import functools
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import mujoco
+from flax import struct
+
+from openral_mjx.physics import PhysicsBackend, PhysicsState
+
+
+@struct.dataclass
+class State:
+    """One env's state, brax/MuJoCo-Playground style.
+
+    `metrics` holds per-step task signals (`success`, `diverged`, ...); `info` holds per-episode
+    constants sampled at reset (e.g. the goal) that the task logic needs.
+    """
+
+    physics: PhysicsState
+    obs: jax.Array
+    reward: jax.Array
+    done: jax.Array
+    metrics: dict[str, jax.Array]
+    info: dict[str, Any]
+
+
+class Scene(abc.ABC):
+    """A registered task. Subclasses set `name`, build `spec`/`backend`, implement the logic."""
+
+    name: str
+    task: str
+    backend: PhysicsBackend
+    spec: mujoco.MjSpec
+    options: Any
+    robot_name: str
+
+    @abc.abstractmethod
+    def reset(self, key: jax.Array) -> State:
+        """Randomise one episode from `key` (seed s -> `jax.random.PRNGKey(s)`)."""
+
+    @abc.abstractmethod
+    def step(self, state: State, action: jax.Array) -> State:
+        """Apply one control action for one control period."""
+
+    @property
+    @abc.abstractmethod
+    def max_steps(self) -> int:
+        """Default episode length in control steps."""
+
+    @property
+    @abc.abstractmethod
+    def action_size(self) -> int: ...
+
+    @property
+    @abc.abstractmethod
+    def obs_layout(self) -> dict[str, tuple[int, int]]:
+        """Named slices of the flat observation: name -> (start, size)."""
+
+    @functools.cached_property
+    def observation_size(self) -> int:
+        """Derived from `reset` by shape evaluation, never hand-counted."""
+        shape = jax.eval_shape(self.reset, jax.random.PRNGKey(0)).obs.shape
+        return int(shape[-1])
+
+    @property
+    def control_dt(self) -> float:
+        return self.backend.control_dt
+
+    @property
+    def mj_model(self) -> mujoco.MjModel:
+        """The compiled scene (as the physics backend sees it, minus backend-private additions)."""
+        return self.backend.mj_model
+
+    def action_bounds(self) -> tuple[jax.Array, jax.Array]:
+        """Per-actuator (low, high) control limits."""
+        r = jnp.asarray(self.mj_model.actuator_ctrlrange, dtype=jnp.float32)
+        return r[:, 0], r[:, 1]

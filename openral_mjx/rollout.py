@@ -65,8 +65,9 @@ def make_episode_fn(
         split = jax.vmap(lambda k: jax.random.split(k, 2))(keys)
         reset_keys, policy_keys = split[:, 0], split[:, 1]
         state = jax.vmap(scene.reset)(reset_keys)
-        _, pstate0 = policy.init(jax.random.PRNGKey(0), jax.ShapeDtypeStruct(
-            state.obs.shape[1:], state.obs.dtype))
+        _, pstate0 = policy.init(
+            jax.random.PRNGKey(0), jax.ShapeDtypeStruct(state.obs.shape[1:], state.obs.dtype)
+        )
         n = seeds.shape[0]
         pstate = jax.tree.map(lambda x: jnp.broadcast_to(x, (n, *jnp.shape(x))), pstate0)
         acc = EpisodeArrays(
@@ -112,8 +113,7 @@ def make_episode_fn(
 
 def check_counts(n_envs: int, n_episodes: int, max_steps: int) -> None:
     """Reject non-positive counts with a `ConfigError` naming the value."""
-    for name, value in (("n_envs", n_envs), ("n_episodes", n_episodes),
-                        ("max_steps", max_steps)):
+    for name, value in (("n_envs", n_envs), ("n_episodes", n_episodes), ("max_steps", max_steps)):
         if value < 1:
             raise ConfigError(f"{name} must be a positive integer, got {value}")
 
@@ -130,7 +130,7 @@ def run_seeds(
 ) -> tuple[dict[str, np.ndarray], RunTiming]:
     """Roll out every seed in chunks of `n_envs`; return per-seed numpy arrays and timings.
 
-    `on_chunk(done_episodes, total_episodes)` is called after each chunk (for progress bars).
+    `on_chunk(done_episodes, total_episodes)` is called once compiled and after each chunk.
     """
     seeds = np.asarray(seeds, dtype=np.int64)
     check_counts(n_envs, len(seeds), max_steps)
@@ -145,6 +145,8 @@ def run_seeds(
     t0 = time.perf_counter()
     compiled = fn.lower(params, jnp.asarray(padded[:n_envs])).compile()
     compile_s = time.perf_counter() - t0
+    if on_chunk is not None:
+        on_chunk(0, len(seeds))
 
     outs: list[EpisodeArrays] = []
     chunk_s: list[float] = []
@@ -159,6 +161,11 @@ def run_seeds(
         f.name: np.concatenate([np.asarray(getattr(o, f.name)) for o in outs])[: len(seeds)]
         for f in dataclasses.fields(EpisodeArrays)
     }
-    timing = RunTiming(compile_s=compile_s, run_s=float(sum(chunk_s)), chunk_s=tuple(chunk_s),
-                       scan_steps=max_steps, n_envs=n_envs)
+    timing = RunTiming(
+        compile_s=compile_s,
+        run_s=float(sum(chunk_s)),
+        chunk_s=tuple(chunk_s),
+        scan_steps=max_steps,
+        n_envs=n_envs,
+    )
     return merged, timing

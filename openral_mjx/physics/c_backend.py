@@ -9,8 +9,10 @@ come back as `framepos`/`framequat` sensors added to this backend's private copy
 
 from __future__ import annotations
 
+import atexit
 import os
 import threading
+import weakref
 from typing import Any
 
 import jax
@@ -23,6 +25,14 @@ from openral_mjx.errors import ConfigError
 from openral_mjx.physics.base import PhysicsBackend, PhysicsState, Quantities, QuantitySpec
 
 _FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS
+_LIVE: weakref.WeakSet[CBackend] = weakref.WeakSet()
+
+
+@atexit.register
+def _close_all() -> None:
+    """Stop rollout thread pools before interpreter shutdown (avoids a GIL fault at exit)."""
+    for backend in list(_LIVE):
+        backend.close()
 
 
 def default_threads() -> int:
@@ -65,6 +75,7 @@ class CBackend(PhysicsBackend):
         self._pool: rollout.Rollout | None = None
         self._datas: list[mujoco.MjData] = []
         self._lock = threading.Lock()
+        _LIVE.add(self)
 
     def _model_with_pose_sensors(
         self, spec: mujoco.MjSpec, quantities: QuantitySpec
@@ -78,7 +89,9 @@ class CBackend(PhysicsBackend):
                 s.add_sensor(type=kind, objtype=mujoco.mjtObj.mjOBJ_XBODY, objname=name)
         for name in quantities.sites:
             s.add_sensor(
-                type=mujoco.mjtSensor.mjSENS_FRAMEPOS, objtype=mujoco.mjtObj.mjOBJ_SITE, objname=name
+                type=mujoco.mjtSensor.mjSENS_FRAMEPOS,
+                objtype=mujoco.mjtObj.mjOBJ_SITE,
+                objname=name,
             )
         return s.compile()
 
@@ -95,12 +108,6 @@ class CBackend(PhysicsBackend):
         if self._pool is not None:
             self._pool.close()
             self._pool = None
-
-    def __del__(self) -> None:  # pragma: no cover - interpreter shutdown order varies
-        try:
-            self.close()
-        except Exception:
-            pass
 
     def _readout(self, states: np.ndarray, sens: np.ndarray, ok: np.ndarray) -> tuple:
         nb, ns = len(self.quantity_spec.bodies), len(self.quantity_spec.sites)
@@ -135,7 +142,7 @@ class CBackend(PhysicsBackend):
             mujoco.mj_getState(m, d, states[i], _FULL)
             sens[i] = d.sensordata
         out = self._readout(states, sens, np.ones(n, bool))
-        return tuple(o.reshape(*lead, *o.shape[1:]) for o in out)
+        return tuple(o.reshape(lead + o.shape[1:]) for o in out)
 
     def _host_step(self, bits: np.ndarray, ctrl: np.ndarray) -> tuple:
         lead = ctrl.shape[:-1]
@@ -151,7 +158,7 @@ class CBackend(PhysicsBackend):
         expected = states[:, 0] + self.n_substeps * self._model.opt.timestep
         ok = np.abs(last[:, 0] - expected) < 0.5 * self._model.opt.timestep
         res = self._readout(last, np.ascontiguousarray(sens[:, -1]), ok)
-        return tuple(o.reshape(*lead, *o.shape[1:]) for o in res)
+        return tuple(o.reshape(lead + o.shape[1:]) for o in res)
 
     # ---- JAX side --------------------------------------------------------------------------
 
@@ -166,7 +173,7 @@ class CBackend(PhysicsBackend):
             sd((*lead, nb, 3), f32),
             sd((*lead, nb, 4), f32),
             sd((*lead, ns, 3), f32),
-            sd((*lead, ), jnp.bool_),
+            sd((*lead,), jnp.bool_),
         )
 
     @staticmethod

@@ -26,10 +26,20 @@ def _quat_to_mat(q: np.ndarray) -> np.ndarray:
 
 def _axis_angle(axis: np.ndarray, angle: jax.Array) -> jax.Array:
     """Rotation matrix about unit `axis` (Rodrigues)."""
-    k = jnp.asarray(
-        [[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]]
-    )
-    return jnp.eye(3) + jnp.sin(angle) * k + (1 - jnp.cos(angle)) * (k @ k)
+    k = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]])
+    return np.eye(3) + jnp.sin(angle) * k + (1 - jnp.cos(angle)) * (k @ k)
+
+
+def _mm(a: jax.Array, b: jax.Array) -> jax.Array:
+    """3x3 @ 3x3 (or 3x3 @ 3) as explicit sums of products in a fixed order.
+
+    XLA's CPU reductions pick their summation order by batch shape, which changes the last bit
+    of a vmapped matmul with the batch size; fixed-order elementwise arithmetic does not, so a
+    seed's episode stays bit-identical at any batch size.
+    """
+    if b.ndim == 1:
+        return a[:, 0] * b[0] + a[:, 1] * b[1] + a[:, 2] * b[2]
+    return a[:, 0:1] * b[0:1, :] + a[:, 1:2] * b[1:2, :] + a[:, 2:3] * b[2:3, :]
 
 
 def site_kinematics(
@@ -55,8 +65,15 @@ def site_kinematics(
             jtype = int(model.jnt_type[j])
             if jtype not in (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE)):
                 raise ValueError(f"joint {model.joint(j).name!r}: only hinge/slide supported")
-            joints.append((jtype, index.get(adr), float(model.qpos0[adr]),
-                           np.array(model.jnt_pos[j]), np.array(model.jnt_axis[j])))
+            joints.append(
+                (
+                    jtype,
+                    index.get(adr),
+                    float(model.qpos0[adr]),
+                    np.array(model.jnt_pos[j]),
+                    np.array(model.jnt_axis[j]),
+                )
+            )
         steps.append((np.array(model.body_pos[b]), _quat_to_mat(model.body_quat[b]), joints))
     site_pos = np.array(model.site_pos[site])
     site_rot = _quat_to_mat(model.site_quat[site])
@@ -65,17 +82,20 @@ def site_kinematics(
     def fk(q: jax.Array) -> tuple[jax.Array, jax.Array]:
         pos, rot = jnp.zeros(3, q.dtype), jnp.eye(3, dtype=q.dtype)
         for body_pos, body_rot, joints in steps:
-            pos = pos + rot @ body_pos
-            rot = rot @ body_rot
+            pos = pos + _mm(rot, jnp.asarray(body_pos, q.dtype))
+            rot = _mm(rot, jnp.asarray(body_rot, q.dtype))
             for jtype, i, q0, anchor, axis in joints:
                 if i is None:
                     continue
+                anchor = jnp.asarray(anchor, q.dtype)
                 if jtype == hinge:
-                    new_rot = rot @ _axis_angle(axis, q[i] - q0)
-                    pos = pos + rot @ anchor - new_rot @ anchor
+                    new_rot = _mm(rot, _axis_angle(axis, q[i] - q0).astype(q.dtype))
+                    pos = pos + _mm(rot, anchor) - _mm(new_rot, anchor)
                     rot = new_rot
                 else:
-                    pos = pos + rot @ axis * (q[i] - q0)
-        return pos + rot @ site_pos, rot @ site_rot
+                    pos = pos + _mm(rot, jnp.asarray(axis, q.dtype)) * (q[i] - q0)
+        return pos + _mm(rot, jnp.asarray(site_pos, q.dtype)), _mm(
+            rot, jnp.asarray(site_rot, q.dtype)
+        )
 
     return fk

@@ -2,10 +2,17 @@
 
 from __future__ import annotations
 
+import contextlib
+import io
+
 import jax
 import jax.numpy as jnp
 import mujoco
-from mujoco import mjx
+
+# mujoco.mjx prints "Failed to import warp" to stdout when warp-lang is absent (an optional
+# extra); keep that out of our CLI's output.
+with contextlib.redirect_stdout(io.StringIO()):
+    from mujoco import mjx
 
 from openral_mjx.physics.base import (
     PhysicsBackend,

@@ -14,6 +14,7 @@ from collections.abc import Callable
 import jax
 import jax.numpy as jnp
 
+from openral_mjx import fixed_order as fo
 from openral_mjx.policies.base import Policy
 
 ForwardKinematics = Callable[[jax.Array], tuple[jax.Array, jax.Array]]
@@ -31,7 +32,9 @@ def push_expert(
     goal_radius: float,
     tool_radius: float = 0.01,
     max_step_m: float = 0.02,
-    orient_weight: float = 0.01,
+    push_step_m: float = 0.005,
+    push_lead_m: float = 0.01,
+    orient_weight: float = 0.001,
     damping: float = 1e-4,
 ) -> Policy:
     """Build the expert.
@@ -60,13 +63,13 @@ def push_expert(
         q, ee = part(obs, "joint_pos"), part(obs, "ee_pos")
         cube, goal = part(obs, "cube_pos")[:2], part(obs, "goal_xy")
         to_goal = goal - cube
-        dist = jnp.linalg.norm(to_goal)
+        dist = fo.norm(to_goal)
         d = to_goal / jnp.maximum(dist, 1e-6)
         pre = cube - d * standoff
         rel = ee[:2] - cube
-        along = rel @ d
+        along = fo.dot(rel, d)
         lateral = d[0] * rel[1] - d[1] * rel[0]
-        near_pre = jnp.linalg.norm(ee[:2] - pre) < 0.01
+        near_pre = fo.norm(ee[:2] - pre) < 0.01
 
         phase = jnp.where((phase == 0) & near_pre, 1, phase)
         phase = jnp.where((phase == 1) & (ee[2] - push_z < 0.008), 2, phase)
@@ -76,22 +79,32 @@ def push_expert(
         phase = jnp.where((phase == 3) & (dist > 0.9 * goal_radius), 0, phase)
 
         high_first = ee[2] < hover_z - 0.01
-        approach = jnp.where(high_first & ~near_pre, jnp.append(ee[:2], hover_z),
-                             jnp.append(pre, hover_z))
-        targets = jnp.stack([
-            approach,
-            jnp.append(pre, push_z),
-            jnp.append(cube - d * (standoff - 0.012), push_z),
-            jnp.append(ee[:2] - d * 0.002, ee[2]),
-        ])
+        approach = jnp.where(
+            high_first & ~near_pre, jnp.append(ee[:2], hover_z), jnp.append(pre, hover_z)
+        )
+        targets = jnp.stack(
+            [
+                approach,
+                jnp.append(pre, push_z),
+                jnp.append(
+                    cube - d * (cube_half + tool_radius - jnp.minimum(push_lead_m, dist)), push_z
+                ),
+                jnp.append(ee[:2] - d * 0.002, ee[2]),
+            ]
+        )
         target = targets[phase]
 
         (pos, axis), (jp, ja) = fk(q), jax.jacfwd(fk)(q)
         err = target - pos
-        err = err * jnp.minimum(1.0, max_step_m / (jnp.linalg.norm(err) + 1e-9))
+        limit = jnp.where(phase >= 2, push_step_m, max_step_m)
+        err = err * jnp.minimum(1.0, limit / (fo.norm(err) + 1e-9))
         axis_err = jnp.array([0.0, 0.0, -1.0]) - axis
-        a = jp.T @ jp + orient_weight * ja.T @ ja + damping * jnp.eye(q.shape[0])
-        dq = jnp.linalg.solve(a, jp.T @ err + orient_weight * ja.T @ axis_err)
+        a = (
+            fo.matmul(jp.T, jp)
+            + orient_weight * fo.matmul(ja.T, ja)
+            + damping * jnp.eye(q.shape[0])
+        )
+        dq = fo.solve_spd(a, fo.matmul(jp.T, err) + orient_weight * fo.matmul(ja.T, axis_err))
         action = jnp.clip((q + dq)[actuator_joint], low, high)
         return action, phase
 

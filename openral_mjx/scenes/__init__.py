@@ -38,11 +38,16 @@ def make_scene(
     options = from_mapping(entry.options_cls, dict(overrides or {}))
     robot = getattr(options, "robot", None)
     if entry.fixed_robot is not None and robot not in (None, entry.fixed_robot):
-        raise ConfigError(
-            f"scene {name!r} requires robot {entry.fixed_robot!r}, not {robot!r}"
-        )
+        raise ConfigError(f"scene {name!r} requires robot {entry.fixed_robot!r}, not {robot!r}")
     return entry.build(options, backend=backend, threads=threads)
 
 
-__all__ = ["SCENES", "Scene", "SceneEntry", "State", "TabletopPush", "TabletopPushOptions",
-           "make_scene"]
+__all__ = [
+    "SCENES",
+    "Scene",
+    "SceneEntry",
+    "State",
+    "TabletopPush",
+    "TabletopPushOptions",
+    "make_scene",
+]

@@ -29,6 +29,7 @@ import jax.numpy as jnp
 import mujoco
 import numpy as np
 
+from openral_mjx import fixed_order as fo
 from openral_mjx.errors import ConfigError
 from openral_mjx.options import check
 from openral_mjx.physics import QuantitySpec, make_backend
@@ -80,12 +81,24 @@ class TabletopPushOptions:
     camera_target: Vec3 = (0.2, 0.0, 0.75)
 
     def __post_init__(self) -> None:
-        for name in ("cube_spawn_x", "cube_spawn_y", "goal_distance", "goal_region_x",
-                     "goal_region_y"):
+        for name in (
+            "cube_spawn_x",
+            "cube_spawn_y",
+            "goal_distance",
+            "goal_region_x",
+            "goal_region_y",
+        ):
             lo, hi = getattr(self, name)
             check(lo <= hi, f"option {name}={[lo, hi]}: low must be <= high")
-        for name in ("cube_size", "cube_mass", "goal_radius", "timestep", "table_height",
-                     "rest_height_tol", "rest_speed"):
+        for name in (
+            "cube_size",
+            "cube_mass",
+            "goal_radius",
+            "timestep",
+            "table_height",
+            "rest_height_tol",
+            "rest_speed",
+        ):
             check(getattr(self, name) > 0, f"option {name}={getattr(self, name)}: must be > 0")
         check(min(self.table_size) > 0, f"option table_size={list(self.table_size)}: must be > 0")
         for name in ("n_substeps", "max_steps", "solver_iterations", "solver_ls_iterations"):
@@ -129,8 +142,12 @@ def _load_robot(robot: RobotSpec) -> mujoco.MjSpec:
         raise ConfigError(
             f"end-effector site {robot.ee_site!r} not in {robot.name}; valid: {', '.join(sites)}"
         )
-    bad = [model.joint(i).name for i in range(model.njnt)
-           if int(model.jnt_type[i]) not in (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))]
+    bad = [
+        model.joint(i).name
+        for i in range(model.njnt)
+        if int(model.jnt_type[i])
+        not in (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
+    ]
     if bad:
         raise ConfigError(f"robot joints must be hinge or slide; {bad} are not")
     if any(int(t) != int(mujoco.mjtTrn.mjTRN_JOINT) for t in model.actuator_trntype):
@@ -163,19 +180,41 @@ def compose(options: TabletopPushOptions, robot: RobotSpec) -> mujoco.MjSpec:
     box, plane = mujoco.mjtGeom.mjGEOM_BOX, mujoco.mjtGeom.mjGEOM_PLANE
     # Contact bits: floor/table/cube contype 1; cube conaffinity 1|2|4 (floor, table, robot
     # distal geoms with contype 2 and links with contype 4); table conaffinity 2 (robot distal).
-    w.add_geom(name="floor", type=plane, size=[3, 3, 0.1], material="floor_grey",
-               contype=1, conaffinity=0)
+    w.add_geom(
+        name="floor", type=plane, size=[3, 3, 0.1], material="floor_grey", contype=1, conaffinity=0
+    )
     half_h = o.table_height / 2
-    w.add_geom(name="table", type=box, material="table_wood", contype=1, conaffinity=2,
-               size=[o.table_size[0] / 2, o.table_size[1] / 2, half_h],
-               pos=[o.table_center[0], o.table_center[1], half_h], friction=[0.6, 0.005, 0.0001])
+    w.add_geom(
+        name="table",
+        type=box,
+        material="table_wood",
+        contype=1,
+        conaffinity=2,
+        size=[o.table_size[0] / 2, o.table_size[1] / 2, half_h],
+        pos=[o.table_center[0], o.table_center[1], half_h],
+        friction=[0.6, 0.005, 0.0001],
+    )
     cube = w.add_body(name="cube", pos=[0.2, 0.0, o.table_height + o.cube_size / 2])
     cube.add_freejoint(name="cube_joint")
     h = o.cube_size / 2
-    cube.add_geom(name="cube", type=box, size=[h, h, h], mass=o.cube_mass, material="cube_red",
-                  contype=1, conaffinity=7, condim=3, friction=[o.cube_friction, 0.005, 0.0001])
-    w.add_site(name="goal", type=mujoco.mjtGeom.mjGEOM_CYLINDER, material="goal_green",
-               size=[o.goal_radius, 0.0005, 0], pos=[0.2, 0.1, o.table_height + 0.0005])
+    cube.add_geom(
+        name="cube",
+        type=box,
+        size=[h, h, h],
+        mass=o.cube_mass,
+        material="cube_red",
+        contype=1,
+        conaffinity=7,
+        condim=3,
+        friction=[o.cube_friction, 0.005, 0.0001],
+    )
+    w.add_site(
+        name="goal",
+        type=mujoco.mjtGeom.mjGEOM_CYLINDER,
+        material="goal_green",
+        size=[o.goal_radius, 0.0005, 0],
+        pos=[0.2, 0.1, o.table_height + 0.0005],
+    )
     w.add_light(name="top_light", pos=[0.2, 0, 2.5], dir=[0, 0, -1], diffuse=[0.8, 0.8, 0.8])
     for name, pos in (("overhead", o.camera_overhead_pos), ("front", o.camera_front_pos)):
         w.add_camera(name=name, pos=list(pos), quat=_look_at_quat(pos, o.camera_target).tolist())
@@ -207,8 +246,11 @@ class TabletopPush(Scene):
         robot_model = _load_robot(robot).compile()
         self.robot_joint_names = tuple(robot_model.joint(i).name for i in range(robot_model.njnt))
         self.backend = make_backend(
-            backend, self.spec, QuantitySpec(bodies=("cube",), sites=(robot.ee_site,)),
-            o.n_substeps, threads=threads,
+            backend,
+            self.spec,
+            QuantitySpec(bodies=("cube",), sites=(robot.ee_site,)),
+            o.n_substeps,
+            threads=threads,
         )
         m = self.mj_model
         self.robot_qpos_adr = np.array([m.joint(n).qposadr[0] for n in self.robot_joint_names])
@@ -222,8 +264,14 @@ class TabletopPush(Scene):
             home[m.joint(joint).qposadr[0]] = value
         self._qpos_home = jnp.asarray(home)
         n = len(self.robot_joint_names)
-        sizes = {"joint_pos": n, "joint_vel": n, "ee_pos": 3, "cube_pos": 3, "cube_quat": 4,
-                 "goal_xy": 2}
+        sizes = {
+            "joint_pos": n,
+            "joint_vel": n,
+            "ee_pos": 3,
+            "cube_pos": 3,
+            "cube_quat": 4,
+            "goal_xy": 2,
+        }
         starts = np.cumsum([0, *sizes.values()])
         self._layout = {k: (int(s), v) for (k, v), s in zip(sizes.items(), starts, strict=False)}
 
@@ -248,8 +296,12 @@ class TabletopPush(Scene):
         o = self.options
         kx, ky, kyaw, kth, kr = jax.random.split(key, 5)
         u = jax.random.uniform
-        cube_xy = jnp.stack([u(kx, (), minval=o.cube_spawn_x[0], maxval=o.cube_spawn_x[1]),
-                             u(ky, (), minval=o.cube_spawn_y[0], maxval=o.cube_spawn_y[1])])
+        cube_xy = jnp.stack(
+            [
+                u(kx, (), minval=o.cube_spawn_x[0], maxval=o.cube_spawn_x[1]),
+                u(ky, (), minval=o.cube_spawn_y[0], maxval=o.cube_spawn_y[1]),
+            ]
+        )
         yaw = u(kyaw, (), minval=-jnp.pi, maxval=jnp.pi)
         theta = u(kth, (), minval=-jnp.pi, maxval=jnp.pi)
         dist = u(kr, (), minval=o.goal_distance[0], maxval=o.goal_distance[1])
@@ -271,10 +323,19 @@ class TabletopPush(Scene):
         physics = self.backend.init(qpos, qvel)
         info = {"goal_xy": goal_xy}
         zero = jnp.zeros((), jnp.float32)
-        metrics = {"success": jnp.zeros((), bool), "diverged": jnp.zeros((), bool),
-                   "goal_dist": zero}
-        state = State(physics=physics, obs=jnp.zeros(0), reward=zero, done=jnp.zeros((), bool),
-                      metrics=metrics, info=info)
+        metrics = {
+            "success": jnp.zeros((), bool),
+            "diverged": jnp.zeros((), bool),
+            "goal_dist": zero,
+        }
+        state = State(
+            physics=physics,
+            obs=jnp.zeros(0),
+            reward=zero,
+            done=jnp.zeros((), bool),
+            metrics=metrics,
+            info=info,
+        )
         return self._evaluate(state, physics)
 
     def step(self, state: State, action: jax.Array) -> State:
@@ -289,24 +350,36 @@ class TabletopPush(Scene):
         cube_pos, cube_quat = q.body_pos[0], q.body_quat[0]
         ee = q.site_pos[0]
         goal_xy = state.info["goal_xy"]
-        goal_dist = jnp.linalg.norm(cube_pos[:2] - goal_xy)
-        cube_speed = jnp.linalg.norm(q.qvel[self.cube_dof_adr : self.cube_dof_adr + 3])
+        goal_dist = fo.norm(cube_pos[:2] - goal_xy)
+        cube_speed = fo.norm(q.qvel[self.cube_dof_adr : self.cube_dof_adr + 3])
         resting = (jnp.abs(cube_pos[2] - self.cube_rest_z) <= o.rest_height_tol) & (
             cube_speed <= o.rest_speed
         )
         diverged = ~q.ok
         success = (goal_dist <= o.goal_radius) & resting & ~diverged
-        reward = -goal_dist - 0.5 * jnp.linalg.norm(ee - cube_pos) + success.astype(jnp.float32)
-        obs = jnp.concatenate([
-            q.qpos[self.robot_qpos_adr], q.qvel[self.robot_dof_adr], ee, cube_pos, cube_quat,
-            goal_xy,
-        ]).astype(jnp.float32)
+        reward = -goal_dist - 0.5 * fo.norm(ee - cube_pos) + success.astype(jnp.float32)
+        obs = jnp.concatenate(
+            [
+                q.qpos[self.robot_qpos_adr],
+                q.qvel[self.robot_dof_adr],
+                ee,
+                cube_pos,
+                cube_quat,
+                goal_xy,
+            ]
+        ).astype(jnp.float32)
         obs = jnp.where(diverged, 0.0, obs)
         reward = jnp.where(diverged, 0.0, reward)
         return state.replace(
-            physics=physics, obs=obs, reward=reward, done=success | diverged,
-            metrics={"success": success, "diverged": diverged,
-                     "goal_dist": jnp.where(diverged, jnp.inf, goal_dist)},
+            physics=physics,
+            obs=obs,
+            reward=reward,
+            done=success | diverged,
+            metrics={
+                "success": success,
+                "diverged": diverged,
+                "goal_dist": jnp.where(diverged, jnp.inf, goal_dist),
+            },
         )
 
     def forward_kinematics(self):
@@ -322,12 +395,18 @@ class TabletopPush(Scene):
     def scripted_policy(self) -> Policy:
         """The scene's expert: push along the cube->goal line (see `push_expert`)."""
         m = self.mj_model
-        joint_index = {int(j): i for i, j in enumerate(
-            m.joint(n).id for n in self.robot_joint_names)}
+        joint_index = {
+            int(j): i for i, j in enumerate(m.joint(n).id for n in self.robot_joint_names)
+        }
         actuator_joint = jnp.array([joint_index[int(j)] for j in m.actuator_trnid[:, 0]])
         low, high = self.action_bounds()
         return push_expert(
-            self.obs_layout, self.forward_kinematics(), actuator_joint, low, high,
-            table_z=self.options.table_height, cube_half=self.options.cube_size / 2,
+            self.obs_layout,
+            self.forward_kinematics(),
+            actuator_joint,
+            low,
+            high,
+            table_z=self.options.table_height,
+            cube_half=self.options.cube_size / 2,
             goal_radius=self.options.goal_radius,
         )

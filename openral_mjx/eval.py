@@ -1,0 +1,172 @@
+"""`python -m openral_mjx.eval`: success rate with a confidence interval, throughput, a report.
+
+Example: ``python -m openral_mjx.eval --scene tabletop_push --n-envs 1024``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import datetime as dt
+from pathlib import Path
+
+import tyro
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+from openral_mjx.cli_common import command_line, guarded, stderr
+from openral_mjx.compile_cache import enable_compilation_cache
+from openral_mjx.errors import ConfigError
+from openral_mjx.evaluate import evaluate
+from openral_mjx.options import load_yaml, parse_overrides
+from openral_mjx.physics import BACKEND_NAMES, resolve_backend_name
+from openral_mjx.policies import POLICIES
+from openral_mjx.robots import ROBOTS
+from openral_mjx.scenes import SCENES
+from openral_mjx.schema import save_report
+
+
+@dataclasses.dataclass
+class EvalArgs:
+    """Evaluate a policy on a MuJoCo scene over many seeds at once."""
+
+    scene: str = "tabletop_push"
+    """Scene ID (see --list)."""
+    policy: str = "scripted"
+    """Policy ID, or ID:ARG (see --list)."""
+    robot: str | None = None
+    """Registered robot for robot-agnostic scenes (default: the scene's, so101)."""
+    robot_mjcf: Path | None = None
+    """Your own robot MJCF (position actuators; end-effector site set by --opt ee_site=NAME)."""
+    backend: str = "auto"
+    """Physics backend: auto (mjx with an accelerator, else c), mjx or c."""
+    n_envs: int = 1024
+    """Envs rolled out in parallel (one seed each)."""
+    n_episodes: int | None = None
+    """Total episodes (seeds); default n_envs. Runs in chunks of n_envs."""
+    max_steps: int | None = None
+    """Control steps per episode (default: the scene's)."""
+    seed: int = 0
+    """First seed; episodes use seeds seed .. seed+n_episodes-1."""
+    config: Path | None = None
+    """YAML file of scene options (see configs/)."""
+    opt: tuple[str, ...] = ()
+    """Scene option overrides, KEY=VALUE (after --config)."""
+    threads: int | None = None
+    """Threads of the C backend (default: all cores)."""
+    out: Path | None = None
+    """Report path (default: results/SCENE_POLICY_TIMESTAMP.json)."""
+    compile_cache: bool = True
+    """Use JAX's persistent compilation cache (~/.cache/openral_mjx/jax)."""
+    list: bool = False
+    """List scenes, policies, robots and backends, then exit."""
+
+
+def _listing() -> str:
+    return "\n".join(
+        [
+            f"scenes:   {', '.join(SCENES.names())}",
+            f"policies: {', '.join(POLICIES.names())}",
+            f"robots:   {', '.join(ROBOTS.names())}",
+            f"backends: {', '.join(BACKEND_NAMES)}",
+        ]
+    )
+
+
+def _scene_options(args: EvalArgs) -> dict:
+    options: dict = {}
+    if args.config is not None:
+        options.update(load_yaml(args.config))
+    options.update(parse_overrides(args.opt))
+    if args.robot is not None:
+        ROBOTS.get(args.robot)
+        options["robot"] = args.robot
+    if args.robot_mjcf is not None:
+        if not args.robot_mjcf.is_file():
+            raise ConfigError(f"robot MJCF {str(args.robot_mjcf)!r} does not exist")
+        options["robot_mjcf"] = str(args.robot_mjcf)
+    return options
+
+
+def _reproduce(args: EvalArgs, backend: str, out: Path) -> str:
+    argv = [
+        "--scene",
+        args.scene,
+        "--policy",
+        args.policy,
+        "--backend",
+        backend,
+        "--n-envs",
+        str(args.n_envs),
+        "--seed",
+        str(args.seed),
+        "--out",
+        str(out),
+    ]
+    for flag, value in (
+        ("--n-episodes", args.n_episodes),
+        ("--max-steps", args.max_steps),
+        ("--robot", args.robot),
+        ("--robot-mjcf", args.robot_mjcf),
+        ("--config", args.config),
+        ("--threads", args.threads),
+    ):
+        if value is not None:
+            argv += [flag, str(value)]
+    if args.opt:
+        argv += ["--opt", *args.opt]
+    return command_line("openral_mjx.eval", argv)
+
+
+def run(args: EvalArgs) -> int:
+    if args.list:
+        print(_listing())
+        return 0
+    SCENES.get(args.scene)
+    POLICIES.get(args.policy.partition(":")[0])
+    backend = resolve_backend_name(args.backend)
+    options = _scene_options(args)
+    stamp = dt.datetime.now().strftime("%Y%m%d-%H%M%S")
+    out = args.out or Path("results") / f"{args.scene}_{args.policy.replace(':', '-')}_{stamp}.json"
+    if out.exists() and out.is_dir():
+        raise ConfigError(f"--out {str(out)!r} is a directory; give a file path")
+    if args.compile_cache:
+        enable_compilation_cache()
+
+    with Progress(
+        TextColumn("{task.description}"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TimeElapsedColumn(),
+        console=stderr,
+        transient=True,
+    ) as progress:
+        task = progress.add_task(f"compiling {args.scene} on {backend}", total=None)
+
+        def on_chunk(done: int, total: int) -> None:
+            progress.update(task, description="episodes", completed=done, total=total)
+
+        report = evaluate(
+            args.scene,
+            args.policy,
+            n_envs=args.n_envs,
+            n_episodes=args.n_episodes,
+            seed=args.seed,
+            max_steps=args.max_steps,
+            backend=backend,
+            threads=args.threads,
+            options=options,
+            command=_reproduce(args, backend, out),
+            on_chunk=on_chunk,
+        )
+    save_report(report, out)
+    print(report.summary())
+    print(f"report: {out}")
+    return 0
+
+
+def main() -> None:
+    args = tyro.cli(EvalArgs)
+    raise SystemExit(guarded(lambda: run(args)))
+
+
+if __name__ == "__main__":
+    main()

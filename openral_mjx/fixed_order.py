@@ -1,0 +1,65 @@
+"""Small-vector linear algebra with a fixed order of floating-point operations.
+
+XLA's CPU backend chooses how to vectorise reductions (and so their summation order) from the
+batch shape, so `jnp.dot`/`jnp.linalg.norm`/`jnp.linalg.solve` on a vmapped env can differ in
+the last bit between batch sizes, and contact dynamics amplify that into different episodes.
+These helpers unroll the arithmetic over the (small, static) vector length into elementwise
+operations in a fixed order, which XLA evaluates identically at any batch size: a seed gives
+a bit-identical episode whether it runs alone or among thousands.
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+
+
+def dot(a: jax.Array, b: jax.Array) -> jax.Array:
+    """Inner product along the last axis."""
+    out = a[..., 0] * b[..., 0]
+    for i in range(1, a.shape[-1]):
+        out = out + a[..., i] * b[..., i]
+    return out
+
+
+def norm(x: jax.Array) -> jax.Array:
+    """Euclidean norm along the last axis."""
+    return jnp.sqrt(dot(x, x))
+
+
+def matmul(a: jax.Array, b: jax.Array) -> jax.Array:
+    """(m, k) @ (k, n) or (m, k) @ (k,)."""
+    if b.ndim == 1:
+        return jnp.stack([dot(a[i], b) for i in range(a.shape[0])])
+    return jnp.stack(
+        [jnp.stack([dot(a[i], b[:, j]) for j in range(b.shape[1])]) for i in range(a.shape[0])]
+    )
+
+
+def solve_spd(a: jax.Array, b: jax.Array) -> jax.Array:
+    """Solve `a x = b` for a small symmetric positive-definite `a` (unrolled Cholesky)."""
+    n = a.shape[0]
+    chol = [[None] * n for _ in range(n)]
+    for j in range(n):
+        s = a[j, j]
+        for k in range(j):
+            s = s - chol[j][k] * chol[j][k]
+        chol[j][j] = jnp.sqrt(s)
+        for i in range(j + 1, n):
+            s = a[i, j]
+            for k in range(j):
+                s = s - chol[i][k] * chol[j][k]
+            chol[i][j] = s / chol[j][j]
+    y = [None] * n
+    for i in range(n):
+        s = b[i]
+        for k in range(i):
+            s = s - chol[i][k] * y[k]
+        y[i] = s / chol[i][i]
+    x = [None] * n
+    for i in reversed(range(n)):
+        s = y[i]
+        for k in range(i + 1, n):
+            s = s - chol[k][i] * x[k]
+        x[i] = s / chol[i][i]
+    return jnp.stack(x)

@@ -1,0 +1,24 @@
+"""Shared fixtures: scenes are built once per session; compiled functions are reused."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import jax
+import pytest
+
+from openral_mjx.scenes import TabletopPush
+
+# Reuse XLA compilations across test runs on this machine (CI starts cold either way).
+jax.config.update("jax_compilation_cache_dir", str(Path(__file__).parent.parent / ".jax_cache"))
+jax.config.update("jax_persistent_cache_min_compile_time_secs", 1.0)
+
+
+@pytest.fixture(scope="session")
+def push_c() -> TabletopPush:
+    return TabletopPush(backend="c", threads=2)
+
+
+@pytest.fixture(scope="session")
+def push_mjx() -> TabletopPush:
+    return TabletopPush(backend="mjx")

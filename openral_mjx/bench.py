@@ -1,0 +1,161 @@
+"""`python -m openral_mjx.bench`: evaluator throughput against raw physics ceilings, one run.
+
+Per batch size N, on the same scene model and substeps, measured side by side:
+
+* evaluator: the full runner (scripted policy, scene logic, freezing) in control steps/s;
+* raw ceiling of the chosen backend: for `mjx`, a bare `vmap(scan(mjx.step x substeps))`;
+  for `c`, bare `mujoco.rollout` calls (one per control step, same threads) with no JAX;
+* MuJoCo C on all cores (`mujoco.rollout`), the CPU reference.
+
+Ratios (evaluator / raw, evaluator / C) are what transfers between machines; absolute numbers
+count only with the device named. Prints a table and writes JSON (`--out`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import datetime as dt
+import time
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+import mujoco
+import numpy as np
+import tyro
+from mujoco import rollout
+
+from openral_mjx.cli_common import command_line, guarded
+from openral_mjx.compile_cache import enable_compilation_cache
+from openral_mjx.errors import ConfigError
+from openral_mjx.evaluate import device_description, package_versions
+from openral_mjx.physics import resolve_backend_name
+from openral_mjx.physics.c_backend import default_threads
+from openral_mjx.policies import make_policy
+from openral_mjx.rollout import run_seeds
+from openral_mjx.scenes import make_scene
+from openral_mjx.schema import write_json_atomic
+
+
+@dataclasses.dataclass
+class BenchArgs:
+    """Measure evaluator throughput against the raw physics ceilings."""
+
+    scene: str = "tabletop_push"
+    backend: str = "auto"
+    """auto, mjx or c."""
+    n: tuple[int, ...] = (1024,)
+    """Batch sizes to measure."""
+    max_steps: int = 200
+    """Control steps per rollout."""
+    c_max_envs: int = 4096
+    """Cap on envs for the MuJoCo C reference (its rate does not depend on N past the cores)."""
+    threads: int | None = None
+    """Threads for MuJoCo C (default: all cores)."""
+    out: Path = Path("results/bench.json")
+    compile_cache: bool = True
+
+
+def _block(x):
+    return jax.tree.map(lambda a: a.block_until_ready() if hasattr(a, "block_until_ready") else a, x)
+
+
+def raw_mjx(scene, n: int, steps: int) -> tuple[float, float]:
+    """Bare `vmap(scan(mjx.step))` from the scene's reset states: (compile s, control steps/s)."""
+    from openral_mjx.physics.mjx_backend import mjx
+
+    mx = scene.backend.mx
+    keys = jax.vmap(jax.random.PRNGKey)(jnp.arange(n))
+    data = jax.jit(jax.vmap(lambda k: scene.reset(k).physics.data))(keys)
+    ctrl = jnp.asarray(np.tile(scene.mj_model.qpos0[scene.robot_qpos_adr], 1)[: scene.action_size])
+
+    def one(d):
+        def control_step(d, _):
+            d = d.replace(ctrl=ctrl)
+            return jax.lax.fori_loop(0, scene.options.n_substeps, lambda _, x: mjx.step(mx, x), d), None
+
+        return jax.lax.scan(control_step, d, None, length=steps)[0].qpos
+
+    fn = jax.jit(jax.vmap(one))
+    t = time.perf_counter()
+    compiled = fn.lower(data).compile()
+    compile_s = time.perf_counter() - t
+    t = time.perf_counter()
+    _block(compiled(data))
+    return compile_s, n * steps / (time.perf_counter() - t)
+
+
+def raw_c(scene, n: int, steps: int, threads: int) -> float:
+    """Bare `mujoco.rollout`, one call per control step as the evaluator makes: steps/s."""
+    m = scene.mj_model
+    d = mujoco.MjData(m)
+    state0 = np.zeros(mujoco.mj_stateSize(m, mujoco.mjtState.mjSTATE_FULLPHYSICS))
+    mujoco.mj_getState(m, d, state0, mujoco.mjtState.mjSTATE_FULLPHYSICS)
+    states = np.tile(state0, (n, 1))
+    ctrl = np.tile(m.qpos0[scene.robot_qpos_adr][: m.nu], (n, 1, 1))
+    datas = [mujoco.MjData(m) for _ in range(threads)]
+    with rollout.Rollout(nthread=threads) as pool:
+        t = time.perf_counter()
+        for _ in range(steps):
+            out, _ = pool.rollout(m, datas, states, ctrl, nstep=scene.options.n_substeps)
+            states = out[:, -1]
+        return n * steps / (time.perf_counter() - t)
+
+
+def peak_memory_bytes() -> int | None:
+    stats = jax.devices()[0].memory_stats() or {}
+    return stats.get("peak_bytes_in_use")
+
+
+def run(args: BenchArgs) -> int:
+    backend = resolve_backend_name(args.backend)
+    if not args.n or min(args.n) < 1 or args.max_steps < 1:
+        raise ConfigError(f"--n values and --max-steps must be positive, got {args.n}")
+    if args.compile_cache:
+        enable_compilation_cache()
+    threads = args.threads or default_threads()
+    scene = make_scene(args.scene, backend=backend, threads=threads)
+    policy = make_policy("scripted", scene)
+    c_scene = scene if backend == "c" else make_scene(args.scene, backend="c", threads=threads)
+    rows = []
+    for n in args.n:
+        _, timing = run_seeds(scene, policy, None, seeds=np.arange(n), n_envs=n,
+                              max_steps=args.max_steps)
+        evaluator = n * args.max_steps / timing.run_s
+        row = {"n": n, "evaluator_steps_per_s": evaluator, "evaluator_compile_s": timing.compile_s}
+        if backend == "mjx":
+            row["raw_compile_s"], row["raw_steps_per_s"] = raw_mjx(scene, n, args.max_steps)
+            row["peak_device_bytes"] = peak_memory_bytes()
+        n_c = min(n, args.c_max_envs)
+        row["c_envs"], row["c_threads"] = n_c, threads
+        row["c_steps_per_s"] = raw_c(c_scene, n_c, args.max_steps, threads)
+        if backend == "c":
+            row["raw_steps_per_s"] = row["c_steps_per_s"]
+        row["evaluator_over_raw"] = evaluator / row["raw_steps_per_s"]
+        row["evaluator_over_c"] = evaluator / row["c_steps_per_s"]
+        rows.append(row)
+        print(f"N={n:>6}: evaluator {evaluator:>12,.0f}  raw {backend} "
+              f"{row['raw_steps_per_s']:>12,.0f}  C({threads} thr) {row['c_steps_per_s']:>10,.0f}"
+              f"  control steps/s | eval/raw {row['evaluator_over_raw']:.2f}"
+              f"  eval/C {row['evaluator_over_c']:.2f}  compile {timing.compile_s:.1f} s",
+              flush=True)
+    result = {
+        "scene": args.scene, "backend": backend, "device": device_description(scene),
+        "max_steps": args.max_steps, "n_substeps": scene.options.n_substeps,
+        "timestep": scene.options.timestep, "rows": rows, "versions": package_versions(),
+        "created_at": dt.datetime.now(dt.UTC).isoformat(timespec="seconds"),
+        "command": command_line("openral_mjx.bench", ["--backend", backend, "--n",
+                                *map(str, args.n), "--max-steps", str(args.max_steps)]),
+    }
+    write_json_atomic(args.out, result)
+    print(f"results: {args.out}")
+    return 0
+
+
+def main() -> None:
+    args = tyro.cli(BenchArgs)
+    raise SystemExit(guarded(lambda: run(args)))
+
+
+if __name__ == "__main__":
+    main()

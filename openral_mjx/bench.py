@@ -7,6 +7,10 @@ Per batch size N, on the same scene model and substeps, measured side by side:
   for `c`, bare `mujoco.rollout` calls (one per control step, same threads) with no JAX;
 * MuJoCo C on all cores (`mujoco.rollout`), the CPU reference.
 
+The raw runs replay the evaluator's recorded actions open-loop from the same reset states, so
+they simulate the same contacts (the solvers exit early on easy states: a resting arm would
+flatter the ceiling about twofold).
+
 Ratios (evaluator / raw, evaluator / C) are what transfers between machines; absolute numbers
 count only with the device named. Prints a table and writes JSON (`--out`).
 """
@@ -56,48 +60,52 @@ class BenchArgs:
     compile_cache: bool = True
 
 
-def _block(x):
-    return jax.tree.map(lambda a: a.block_until_ready() if hasattr(a, "block_until_ready") else a, x)
-
-
-def raw_mjx(scene, n: int, steps: int) -> tuple[float, float]:
-    """Bare `vmap(scan(mjx.step))` from the scene's reset states: (compile s, control steps/s)."""
+def raw_mjx(scene, actions: np.ndarray) -> tuple[float, float]:
+    """Bare `vmap(scan(mjx.step))` replaying the evaluator's actions open-loop from the same
+    reset states (so contacts and solver work match): (compile s, control steps/s)."""
     from openral_mjx.physics.mjx_backend import mjx
 
-    mx = scene.backend.mx
-    keys = jax.vmap(jax.random.PRNGKey)(jnp.arange(n))
+    mx, n_sub = scene.backend.mx, scene.options.n_substeps
+    n, steps = actions.shape[:2]
+    keys = jax.vmap(lambda s: jax.random.split(jax.random.PRNGKey(s))[0])(jnp.arange(n))
     data = jax.jit(jax.vmap(lambda k: scene.reset(k).physics.data))(keys)
-    ctrl = jnp.asarray(np.tile(scene.mj_model.qpos0[scene.robot_qpos_adr], 1)[: scene.action_size])
+    low, high = scene.action_bounds()
+    ctrls = jnp.clip(jnp.asarray(actions), low, high)
 
-    def one(d):
-        def control_step(d, _):
+    def one(d, ctrl_seq):
+        def control_step(d, ctrl):
             d = d.replace(ctrl=ctrl)
-            return jax.lax.fori_loop(0, scene.options.n_substeps, lambda _, x: mjx.step(mx, x), d), None
+            return jax.lax.fori_loop(0, n_sub, lambda _, x: mjx.step(mx, x), d), None
 
-        return jax.lax.scan(control_step, d, None, length=steps)[0].qpos
+        return jax.lax.scan(control_step, d, ctrl_seq)[0].qpos
 
     fn = jax.jit(jax.vmap(one))
     t = time.perf_counter()
-    compiled = fn.lower(data).compile()
+    compiled = fn.lower(data, ctrls).compile()
     compile_s = time.perf_counter() - t
     t = time.perf_counter()
-    _block(compiled(data))
+    jax.block_until_ready(compiled(data, ctrls))
     return compile_s, n * steps / (time.perf_counter() - t)
 
 
-def raw_c(scene, n: int, steps: int, threads: int) -> float:
-    """Bare `mujoco.rollout`, one call per control step as the evaluator makes: steps/s."""
-    m = scene.mj_model
-    d = mujoco.MjData(m)
-    state0 = np.zeros(mujoco.mj_stateSize(m, mujoco.mjtState.mjSTATE_FULLPHYSICS))
-    mujoco.mj_getState(m, d, state0, mujoco.mjtState.mjSTATE_FULLPHYSICS)
-    states = np.tile(state0, (n, 1))
-    ctrl = np.tile(m.qpos0[scene.robot_qpos_adr][: m.nu], (n, 1, 1))
-    datas = [mujoco.MjData(m) for _ in range(threads)]
+def raw_c(scene, actions: np.ndarray, threads: int) -> float:
+    """Bare `mujoco.rollout`, one call per control step as the evaluator makes, replaying the
+    evaluator's actions from the same reset states, no JAX: control steps/s."""
+    n, steps = actions.shape[:2]
+    keys = jax.vmap(lambda s: jax.random.split(jax.random.PRNGKey(s))[0])(jnp.arange(n))
+    with jax.default_device(jax.devices("cpu")[0]):
+        bits = jax.jit(jax.vmap(lambda k: scene.reset(k).physics.data))(keys)
+    states = np.asarray(bits).view(np.float64).reshape(n, -1)
+    low, high = (np.asarray(x, np.float64) for x in scene.action_bounds())
+    ctrl = np.clip(np.asarray(actions, np.float64), low, high)
+    c_model = scene.backend.host_model
+    datas = [mujoco.MjData(c_model) for _ in range(threads)]
     with rollout.Rollout(nthread=threads) as pool:
         t = time.perf_counter()
-        for _ in range(steps):
-            out, _ = pool.rollout(m, datas, states, ctrl, nstep=scene.options.n_substeps)
+        for i in range(steps):
+            out, _ = pool.rollout(
+                c_model, datas, states, ctrl[:, i : i + 1], nstep=scene.options.n_substeps
+            )
             states = out[:, -1]
         return n * steps / (time.perf_counter() - t)
 
@@ -119,33 +127,49 @@ def run(args: BenchArgs) -> int:
     c_scene = scene if backend == "c" else make_scene(args.scene, backend="c", threads=threads)
     rows = []
     for n in args.n:
-        _, timing = run_seeds(scene, policy, None, seeds=np.arange(n), n_envs=n,
-                              max_steps=args.max_steps)
+        arrays, timing = run_seeds(
+            scene,
+            policy,
+            None,
+            seeds=np.arange(n),
+            n_envs=n,
+            max_steps=args.max_steps,
+            record_actions=True,
+        )
         evaluator = n * args.max_steps / timing.run_s
         row = {"n": n, "evaluator_steps_per_s": evaluator, "evaluator_compile_s": timing.compile_s}
         if backend == "mjx":
-            row["raw_compile_s"], row["raw_steps_per_s"] = raw_mjx(scene, n, args.max_steps)
+            row["raw_compile_s"], row["raw_steps_per_s"] = raw_mjx(scene, arrays["actions"])
             row["peak_device_bytes"] = peak_memory_bytes()
         n_c = min(n, args.c_max_envs)
         row["c_envs"], row["c_threads"] = n_c, threads
-        row["c_steps_per_s"] = raw_c(c_scene, n_c, args.max_steps, threads)
+        row["c_steps_per_s"] = raw_c(c_scene, arrays["actions"][:n_c], threads)
         if backend == "c":
             row["raw_steps_per_s"] = row["c_steps_per_s"]
         row["evaluator_over_raw"] = evaluator / row["raw_steps_per_s"]
         row["evaluator_over_c"] = evaluator / row["c_steps_per_s"]
         rows.append(row)
-        print(f"N={n:>6}: evaluator {evaluator:>12,.0f}  raw {backend} "
-              f"{row['raw_steps_per_s']:>12,.0f}  C({threads} thr) {row['c_steps_per_s']:>10,.0f}"
-              f"  control steps/s | eval/raw {row['evaluator_over_raw']:.2f}"
-              f"  eval/C {row['evaluator_over_c']:.2f}  compile {timing.compile_s:.1f} s",
-              flush=True)
+        print(
+            f"N={n:>6}: evaluator {evaluator:>12,.0f}  raw {backend} "
+            f"{row['raw_steps_per_s']:>12,.0f}  C({threads} thr) {row['c_steps_per_s']:>10,.0f}"
+            f"  control steps/s | eval/raw {row['evaluator_over_raw']:.2f}"
+            f"  eval/C {row['evaluator_over_c']:.2f}  compile {timing.compile_s:.1f} s",
+            flush=True,
+        )
     result = {
-        "scene": args.scene, "backend": backend, "device": device_description(scene),
-        "max_steps": args.max_steps, "n_substeps": scene.options.n_substeps,
-        "timestep": scene.options.timestep, "rows": rows, "versions": package_versions(),
+        "scene": args.scene,
+        "backend": backend,
+        "device": device_description(scene),
+        "max_steps": args.max_steps,
+        "n_substeps": scene.options.n_substeps,
+        "timestep": scene.options.timestep,
+        "rows": rows,
+        "versions": package_versions(),
         "created_at": dt.datetime.now(dt.UTC).isoformat(timespec="seconds"),
-        "command": command_line("openral_mjx.bench", ["--backend", backend, "--n",
-                                *map(str, args.n), "--max-steps", str(args.max_steps)]),
+        "command": command_line(
+            "openral_mjx.bench",
+            ["--backend", backend, "--n", *map(str, args.n), "--max-steps", str(args.max_steps)],
+        ),
     }
     write_json_atomic(args.out, result)
     print(f"results: {args.out}")

@@ -22,6 +22,13 @@ def dot(a: jax.Array, b: jax.Array) -> jax.Array:
     return out
 
 
+def cross(a: jax.Array, b: jax.Array) -> jax.Array:
+    """Cross product of 3-vectors."""
+    return jnp.stack(
+        [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+    )
+
+
 def norm(x: jax.Array) -> jax.Array:
     """Euclidean norm along the last axis."""
     return jnp.sqrt(dot(x, x))

@@ -56,9 +56,13 @@ def _freeze(done: jax.Array, old: Any, new: Any) -> Any:
 
 
 def make_episode_fn(
-    scene: Scene, policy: Policy, max_steps: int
-) -> Callable[[Any, jax.Array], EpisodeArrays]:
-    """A pure function `(policy_params, seeds[n]) -> EpisodeArrays` (jit it)."""
+    scene: Scene, policy: Policy, max_steps: int, *, record_actions: bool = False
+) -> Callable[[Any, jax.Array], EpisodeArrays | tuple[EpisodeArrays, jax.Array]]:
+    """A pure function `(policy_params, seeds[n]) -> EpisodeArrays` (jit it).
+
+    With `record_actions`, it also returns the actions taken, `(max_steps, n, action_size)`
+    (for benchmarks that replay them open-loop).
+    """
 
     def episode(params: Any, seeds: jax.Array) -> EpisodeArrays:
         keys = jax.vmap(jax.random.PRNGKey)(seeds)
@@ -101,12 +105,12 @@ def make_episode_fn(
             new_done = done | new_state.done
             state = _freeze(done, state, new_state)
             pstate = _freeze(done, pstate, new_pstate)
-            return (state, pstate, acc, new_done), None
+            return (state, pstate, acc, new_done), (action if record_actions else None)
 
-        (_, _, acc, _), _ = jax.lax.scan(
+        (_, _, acc, _), actions = jax.lax.scan(
             body, (state, pstate, acc, done0), jnp.arange(max_steps, dtype=jnp.int32)
         )
-        return acc
+        return (acc, actions) if record_actions else acc
 
     return episode
 
@@ -127,8 +131,13 @@ def run_seeds(
     n_envs: int,
     max_steps: int,
     on_chunk: Callable[[int, int], None] | None = None,
+    record_actions: bool = False,
 ) -> tuple[dict[str, np.ndarray], RunTiming]:
     """Roll out every seed in chunks of `n_envs`; return per-seed numpy arrays and timings.
+
+    The loop runs on the physics backend's JAX device (the CPU for the `c` backend, so a GPU
+    machine does not bounce every control step between device and host).
+    With `record_actions`, the arrays include `actions`: (n_seeds, max_steps, action_size).
 
     `on_chunk(done_episodes, total_episodes)` is called once compiled and after each chunk.
     """
@@ -141,26 +150,30 @@ def run_seeds(
     padded = np.concatenate([seeds, seeds[-1] + 1 + np.arange(n_chunks * n_envs - len(seeds))])
     padded = np.minimum(padded, 2**31 - 1).astype(np.int32)
 
-    fn = jax.jit(make_episode_fn(scene, policy, max_steps))
+    device = scene.backend.jax_device
+    fn = jax.jit(make_episode_fn(scene, policy, max_steps, record_actions=record_actions))
+    put = (lambda x: jax.device_put(x, device)) if device is not None else jnp.asarray
+    params = put(params) if params is not None else None
     t0 = time.perf_counter()
-    compiled = fn.lower(params, jnp.asarray(padded[:n_envs])).compile()
+    compiled = fn.lower(params, put(padded[:n_envs])).compile()
     compile_s = time.perf_counter() - t0
     if on_chunk is not None:
         on_chunk(0, len(seeds))
 
-    outs: list[EpisodeArrays] = []
+    outs: list[dict[str, np.ndarray]] = []
     chunk_s: list[float] = []
     for c in range(n_chunks):
         t = time.perf_counter()
-        out = jax.device_get(compiled(params, jnp.asarray(padded[c * n_envs : (c + 1) * n_envs])))
+        out = jax.device_get(compiled(params, put(padded[c * n_envs : (c + 1) * n_envs])))
         chunk_s.append(time.perf_counter() - t)
-        outs.append(out)
+        acc, actions = out if record_actions else (out, None)
+        row = {f.name: np.asarray(getattr(acc, f.name)) for f in dataclasses.fields(acc)}
+        if actions is not None:
+            row["actions"] = np.swapaxes(np.asarray(actions), 0, 1)
+        outs.append(row)
         if on_chunk is not None:
             on_chunk(min((c + 1) * n_envs, len(seeds)), len(seeds))
-    merged = {
-        f.name: np.concatenate([np.asarray(getattr(o, f.name)) for o in outs])[: len(seeds)]
-        for f in dataclasses.fields(EpisodeArrays)
-    }
+    merged = {k: np.concatenate([o[k] for o in outs])[: len(seeds)] for k in outs[0]}
     timing = RunTiming(
         compile_s=compile_s,
         run_s=float(sum(chunk_s)),

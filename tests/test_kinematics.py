@@ -1,4 +1,4 @@
-"""The JAX chain kinematics against MuJoCo C's forward kinematics."""
+"""The JAX chain kinematics against MuJoCo C: `mj_kinematics` poses and `mj_jacSite`."""
 
 import jax.numpy as jnp
 import mujoco
@@ -7,18 +7,24 @@ import numpy as np
 from openral_mjx.physics.kinematics import site_kinematics
 
 
-def test_site_pose_matches_mujoco(push_c):
+def test_site_pose_and_jacobian_match_mujoco(push_c):
     m = push_c.mj_model
     d = mujoco.MjData(m)
-    fk = site_kinematics(m, push_c.ee_site_id, push_c.robot_qpos_adr)
+    site = push_c.ee_site_id
+    fk = site_kinematics(m, site, push_c.robot_qpos_adr)
     rng = np.random.default_rng(0)
     lo, hi = m.jnt_range[[m.joint(n).id for n in push_c.robot_joint_names]].T
+    jacp_ref, jacr_ref = np.zeros((3, m.nv)), np.zeros((3, m.nv))
     for _ in range(20):
         q = rng.uniform(lo, hi)
         d.qpos[:] = m.qpos0
         d.qpos[push_c.robot_qpos_adr] = q
-        mujoco.mj_kinematics(m, d)
-        pos, rot = fk(jnp.asarray(q, jnp.float32))
-        # float32 chain of 6 bodies: a few 1e-7 m expected.
-        np.testing.assert_allclose(pos, d.site_xpos[push_c.ee_site_id], atol=1e-6)
-        np.testing.assert_allclose(rot, d.site_xmat[push_c.ee_site_id].reshape(3, 3), atol=1e-6)
+        mujoco.mj_forward(m, d)
+        mujoco.mj_jacSite(m, d, jacp_ref, jacr_ref, site)
+        pos, rot, jacp, jacr = fk(jnp.asarray(q, jnp.float32))
+        dofs = push_c.robot_dof_adr
+        # float32 chain of 6 bodies: errors of a few 1e-7 expected.
+        np.testing.assert_allclose(pos, d.site_xpos[site], atol=1e-6)
+        np.testing.assert_allclose(rot, d.site_xmat[site].reshape(3, 3), atol=1e-6)
+        np.testing.assert_allclose(jacp, jacp_ref[:, dofs], atol=1e-6)
+        np.testing.assert_allclose(jacr, jacr_ref[:, dofs], atol=1e-6)

@@ -72,6 +72,11 @@ class PhysicsBackend(abc.ABC):
         """Hold `ctrl` for `n_substeps` physics steps."""
 
     @property
+    def jax_device(self) -> jax.Device | None:
+        """The device the jitted loop should run on (None: JAX's default)."""
+        return None
+
+    @property
     def control_dt(self) -> float:
         return float(self.mj_model.opt.timestep) * self.n_substeps
 

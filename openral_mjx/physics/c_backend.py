@@ -200,5 +200,15 @@ class CBackend(PhysicsBackend):
         q = new.quantities
         return new.replace(quantities=q.replace(ok=q.ok & state.quantities.ok))
 
+    @property
+    def host_model(self) -> mujoco.MjModel:
+        """The model MuJoCo C steps: the scene plus this backend's pose sensors."""
+        return self._model
+
+    @property
+    def jax_device(self) -> jax.Device:
+        """The host CPU: the physics is on the host, so the loop around it stays there too."""
+        return jax.devices("cpu")[0]
+
     def describe(self) -> dict[str, Any]:
         return {**super().describe(), "threads": self.threads}

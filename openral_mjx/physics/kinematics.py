@@ -17,6 +17,8 @@ import jax.numpy as jnp
 import mujoco
 import numpy as np
 
+from openral_mjx import fixed_order as fo
+
 
 def _quat_to_mat(q: np.ndarray) -> np.ndarray:
     m = np.zeros(9)
@@ -44,11 +46,13 @@ def _mm(a: jax.Array, b: jax.Array) -> jax.Array:
 
 def site_kinematics(
     model: mujoco.MjModel, site: int, qpos_adr: np.ndarray
-) -> Callable[[jax.Array], tuple[jax.Array, jax.Array]]:
-    """Return `fk(q) -> (site position, site rotation matrix)` in the world frame.
+) -> Callable[[jax.Array], tuple[jax.Array, jax.Array, jax.Array, jax.Array]]:
+    """Return `fk(q) -> (site position, site rotation matrix, jacp, jacr)`, world frame.
 
     `q` holds the positions of the joints at `qpos_adr` (hinge/slide); every other joint on the
-    chain stays at `qpos0`.
+    chain stays at `qpos0`. `jacp`/`jacr` (3, len(q)) are the site's translational and
+    rotational Jacobians (MuJoCo's `mj_jacSite`), built geometrically from each joint's world
+    axis and anchor: one forward pass, no autodiff. Joints off the chain get zero columns.
     """
     chain: list[int] = []
     b = int(model.site_bodyid[site])
@@ -79,8 +83,9 @@ def site_kinematics(
     site_rot = _quat_to_mat(model.site_quat[site])
     hinge = int(mujoco.mjtJoint.mjJNT_HINGE)
 
-    def fk(q: jax.Array) -> tuple[jax.Array, jax.Array]:
+    def fk(q: jax.Array) -> tuple[jax.Array, jax.Array, jax.Array, jax.Array]:
         pos, rot = jnp.zeros(3, q.dtype), jnp.eye(3, dtype=q.dtype)
+        axes: dict[int, tuple[int, jax.Array, jax.Array]] = {}  # i -> (type, axis, anchor)
         for body_pos, body_rot, joints in steps:
             pos = pos + _mm(rot, jnp.asarray(body_pos, q.dtype))
             rot = _mm(rot, jnp.asarray(body_rot, q.dtype))
@@ -88,14 +93,23 @@ def site_kinematics(
                 if i is None:
                     continue
                 anchor = jnp.asarray(anchor, q.dtype)
+                world_axis = _mm(rot, jnp.asarray(axis, q.dtype))
                 if jtype == hinge:
                     new_rot = _mm(rot, _axis_angle(axis, q[i] - q0).astype(q.dtype))
+                    axes[i] = (jtype, world_axis, pos + _mm(rot, anchor))
                     pos = pos + _mm(rot, anchor) - _mm(new_rot, anchor)
                     rot = new_rot
                 else:
-                    pos = pos + _mm(rot, jnp.asarray(axis, q.dtype)) * (q[i] - q0)
-        return pos + _mm(rot, jnp.asarray(site_pos, q.dtype)), _mm(
-            rot, jnp.asarray(site_rot, q.dtype)
-        )
+                    axes[i] = (jtype, world_axis, pos)
+                    pos = pos + world_axis * (q[i] - q0)
+        site_p = pos + _mm(rot, jnp.asarray(site_pos, q.dtype))
+        zero = jnp.zeros(3, q.dtype)
+        jacp, jacr = [], []
+        for i in range(q.shape[0]):
+            jtype, w, anchor = axes.get(i, (hinge, zero, site_p))
+            jacp.append(fo.cross(w, site_p - anchor) if jtype == hinge else w)
+            jacr.append(w if jtype == hinge else zero)
+        site_r = _mm(rot, jnp.asarray(site_rot, q.dtype))
+        return site_p, site_r, jnp.stack(jacp, axis=1), jnp.stack(jacr, axis=1)
 
     return fk

@@ -17,7 +17,8 @@ import jax.numpy as jnp
 from openral_mjx import fixed_order as fo
 from openral_mjx.policies.base import Policy
 
-ForwardKinematics = Callable[[jax.Array], tuple[jax.Array, jax.Array]]
+# q -> (ee position, tool axis, d position / dq (3, n), d axis / dq (3, n))
+ForwardKinematics = Callable[[jax.Array], tuple[jax.Array, jax.Array, jax.Array, jax.Array]]
 
 
 def push_expert(
@@ -41,7 +42,8 @@ def push_expert(
 
     Args:
         layout: the scene's observation slices (`joint_pos`, `ee_pos`, `cube_pos`, `goal_xy`).
-        fk: robot joint positions -> (end-effector position, tool axis), world frame.
+        fk: robot joint positions -> (end-effector position, tool axis, and their Jacobians),
+            world frame.
         actuator_joint: for each actuator, the index of its joint in `joint_pos`.
         low, high: actuator control limits.
     """
@@ -94,7 +96,7 @@ def push_expert(
         )
         target = targets[phase]
 
-        (pos, axis), (jp, ja) = fk(q), jax.jacfwd(fk)(q)
+        pos, axis, jp, ja = fk(q)
         err = target - pos
         limit = jnp.where(phase >= 2, push_step_m, max_step_m)
         err = err * jnp.minimum(1.0, limit / (fo.norm(err) + 1e-9))

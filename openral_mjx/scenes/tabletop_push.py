@@ -383,12 +383,15 @@ class TabletopPush(Scene):
         )
 
     def forward_kinematics(self):
-        """Robot joint positions -> (end-effector position, tool +z axis), pure JAX."""
+        """Robot joint positions -> (ee position, tool +z axis, and their Jacobians), pure JAX."""
         fk = site_kinematics(self.mj_model, self.ee_site_id, self.robot_qpos_adr)
 
-        def ee_pose(q: jax.Array) -> tuple[jax.Array, jax.Array]:
-            pos, rot = fk(q)
-            return pos, rot[:, 2]
+        def ee_pose(q: jax.Array):
+            pos, rot, jacp, jacr = fk(q)
+            axis = rot[:, 2]
+            # d(axis)/dq_i = omega_i x axis for the rotational Jacobian column omega_i.
+            jac_axis = jnp.stack([fo.cross(jacr[:, i], axis) for i in range(q.shape[0])], 1)
+            return pos, axis, jacp, jac_axis
 
         return ee_pose
 

@@ -177,7 +177,7 @@ def run(args: BenchArgs) -> int:
 
 
 def main() -> None:
-    args = tyro.cli(BenchArgs)
+    args = tyro.cli(BenchArgs, prog="python -m openral_mjx.bench")
     raise SystemExit(guarded(lambda: run(args)))
 
 

@@ -164,7 +164,7 @@ def run(args: EvalArgs) -> int:
 
 
 def main() -> None:
-    args = tyro.cli(EvalArgs)
+    args = tyro.cli(EvalArgs, prog="python -m openral_mjx.eval")
     raise SystemExit(guarded(lambda: run(args)))
 
 

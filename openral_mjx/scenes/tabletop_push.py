@@ -243,8 +243,6 @@ class TabletopPush(Scene):
         self.robot_name = robot.name
         self.robot = robot
         self.spec = compose(o, robot)
-        robot_model = _load_robot(robot).compile()
-        self.robot_joint_names = tuple(robot_model.joint(i).name for i in range(robot_model.njnt))
         self.backend = make_backend(
             backend,
             self.spec,
@@ -253,9 +251,11 @@ class TabletopPush(Scene):
             threads=threads,
         )
         m = self.mj_model
-        self.robot_qpos_adr = np.array([m.joint(n).qposadr[0] for n in self.robot_joint_names])
-        self.robot_dof_adr = np.array([m.joint(n).dofadr[0] for n in self.robot_joint_names])
         cube_joint = m.joint("cube_joint")
+        # Every joint but the cube's belongs to the robot (the scene adds no others).
+        self.robot_joint_ids = np.array([j for j in range(m.njnt) if j != cube_joint.id])
+        self.robot_qpos_adr = m.jnt_qposadr[self.robot_joint_ids]
+        self.robot_dof_adr = m.jnt_dofadr[self.robot_joint_ids]
         self.cube_qpos_adr = int(cube_joint.qposadr[0])
         self.cube_dof_adr = int(cube_joint.dofadr[0])
         self.ee_site_id = m.site(robot.ee_site).id
@@ -263,7 +263,7 @@ class TabletopPush(Scene):
         for joint, value in robot.home_qpos.items():
             home[m.joint(joint).qposadr[0]] = value
         self._qpos_home = jnp.asarray(home)
-        n = len(self.robot_joint_names)
+        n = len(self.robot_joint_ids)
         sizes = {
             "joint_pos": n,
             "joint_vel": n,
@@ -398,9 +398,7 @@ class TabletopPush(Scene):
     def scripted_policy(self) -> Policy:
         """The scene's expert: push along the cube->goal line (see `push_expert`)."""
         m = self.mj_model
-        joint_index = {
-            int(j): i for i, j in enumerate(m.joint(n).id for n in self.robot_joint_names)
-        }
+        joint_index = {int(j): i for i, j in enumerate(self.robot_joint_ids)}
         actuator_joint = jnp.array([joint_index[int(j)] for j in m.actuator_trnid[:, 0]])
         low, high = self.action_bounds()
         return push_expert(

@@ -33,7 +33,7 @@ from openral_mjx.cli_common import command_line, guarded
 from openral_mjx.compile_cache import enable_compilation_cache
 from openral_mjx.errors import ConfigError
 from openral_mjx.evaluate import device_description, package_versions
-from openral_mjx.physics import resolve_backend_name
+from openral_mjx.physics import PhysicsSettings, resolve_backend_name
 from openral_mjx.physics.c_backend import default_threads
 from openral_mjx.policies import make_policy
 from openral_mjx.rollout import run_seeds
@@ -122,9 +122,10 @@ def run(args: BenchArgs) -> int:
     if args.compile_cache:
         enable_compilation_cache()
     threads = args.threads or default_threads()
-    scene = make_scene(args.scene, backend=backend, threads=threads)
+    settings = PhysicsSettings(threads=threads, batch_size=max(args.n))
+    scene = make_scene(args.scene, backend=backend, settings=settings)
     policy = make_policy("scripted", scene)
-    c_scene = scene if backend == "c" else make_scene(args.scene, backend="c", threads=threads)
+    c_scene = scene if backend == "c" else make_scene(args.scene, backend="c", settings=settings)
     rows = []
     for n in args.n:
         arrays, timing = run_seeds(

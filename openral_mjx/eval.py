@@ -37,7 +37,8 @@ class EvalArgs:
     robot_mjcf: Path | None = None
     """Your own robot MJCF (position actuators; end-effector site set by --opt ee_site=NAME)."""
     backend: str = "auto"
-    """Physics backend: auto (mjx with an accelerator, else c), mjx or c."""
+    """Physics backend: auto (warp with warp-lang on a CUDA GPU, mjx on another accelerator,
+    else c), mjx, warp or c."""
     n_envs: int = 1024
     """Envs rolled out in parallel (one seed each)."""
     n_episodes: int | None = None

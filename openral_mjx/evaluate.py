@@ -13,6 +13,7 @@ import numpy as np
 
 from openral_mjx.errors import ConfigError
 from openral_mjx.options import to_dict
+from openral_mjx.physics import PhysicsSettings
 from openral_mjx.policies import make_policy
 from openral_mjx.rollout import RunTiming, check_counts, run_seeds
 from openral_mjx.scenes import Scene, make_scene
@@ -33,11 +34,11 @@ def package_versions() -> dict[str, str]:
 
 
 def device_description(scene: Scene) -> str:
-    """What ran the physics: the JAX device for `mjx`, the CPU thread pool for `c`."""
+    """What ran the physics: the JAX devices for `mjx`/`warp`, the CPU thread pool for `c`."""
     if scene.backend.name == "c":
         return f"cpu: MuJoCo C, {scene.backend.describe()['threads']} threads"
-    d = jax.devices()[0]
-    return f"{d.platform}: {d.device_kind} x{jax.device_count()}"
+    devices = scene.backend.devices()
+    return f"{devices[0].platform}: {devices[0].device_kind} x{len(devices)}"
 
 
 def episode_results(
@@ -98,7 +99,8 @@ def evaluate(
     if seed < 0:
         raise ConfigError(f"seed must be >= 0, got {seed}")
     if isinstance(scene, str):
-        scene = make_scene(scene, options, backend=backend, threads=threads)
+        settings = PhysicsSettings(threads=threads, batch_size=n_envs)
+        scene = make_scene(scene, options, backend=backend, settings=settings)
     pol = make_policy(policy, scene)
     steps = scene.max_steps if max_steps is None else max_steps
     seeds = np.arange(seed, seed + n_episodes, dtype=np.int64)

@@ -1,22 +1,28 @@
 """The batched episode runner: `vmap` over envs, one `lax.scan` over control steps, one `jit`.
 
 Seed s always maps to `jax.random.PRNGKey(s)`, split into the reset key and the policy's key
-stream, so an episode depends on its seed alone: not on batch size, chunking or device.
-Finished envs freeze (no auto-reset). More seeds than envs run in chunks of `n_envs` that reuse
-one compiled function (the last chunk is padded with extra seeds whose results are dropped).
+stream, so an episode depends on its seed alone, not on its position in a batch. Finished envs
+freeze (no auto-reset). More seeds than envs run in chunks of `n_envs` that reuse one compiled
+function (the last chunk is padded with extra seeds whose results are dropped). Envs shard over
+every device the physics backend runs on (a 1-D mesh over the env axis, `jax.shard_map`, each
+device running the same single-device program on its slice), and a batch that would not fit in
+device memory is shrunk before it runs.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 from flax import struct
+from jax.experimental import multihost_utils
+from jax.sharding import Mesh, NamedSharding
+from jax.sharding import PartitionSpec as P
 
 from openral_mjx.errors import ConfigError
 from openral_mjx.policies.base import Policy
@@ -36,23 +42,25 @@ class EpisodeArrays:
 
 @dataclasses.dataclass(frozen=True)
 class RunTiming:
-    """Wall-clock measurements of a run (seconds)."""
+    """Wall-clock measurements of a run (seconds) and the batch layout that ran.
+
+    `n_envs` is the batch that ran (the request rounded up to a multiple of the devices, or
+    shrunk to fit device memory); `bytes_per_device` is XLA's estimate of the compiled
+    episode's peak memory on one device (None where the backend cannot say).
+    """
 
     compile_s: float
     run_s: float
     chunk_s: tuple[float, ...]
     scan_steps: int
     n_envs: int
+    n_devices: int = 1
+    bytes_per_device: int | None = None
 
 
-def _freeze(done: jax.Array, old: Any, new: Any) -> Any:
-    """Keep `old` where an env is already done."""
-
-    def pick(a, b):
-        mask = done.reshape(done.shape + (1,) * (a.ndim - done.ndim))
-        return jnp.where(mask, a, b)
-
-    return jax.tree.map(pick, old, new)
+def _keep(done: jax.Array, old: Any, new: Any) -> Any:
+    """One env's pytree: `old` where `done`, else `new`."""
+    return jax.tree.map(lambda a, b: jnp.where(done, a, b), old, new)
 
 
 def make_episode_fn(
@@ -103,8 +111,8 @@ def make_episode_fn(
                 diverged=acc.diverged | diverged,
             )
             new_done = done | new_state.done
-            state = _freeze(done, state, new_state)
-            pstate = _freeze(done, pstate, new_pstate)
+            state = jax.vmap(scene.select)(done, state, new_state)
+            pstate = jax.vmap(_keep)(done, pstate, new_pstate)
             return (state, pstate, acc, new_done), (action if record_actions else None)
 
         (_, _, acc, _), actions = jax.lax.scan(
@@ -122,6 +130,75 @@ def check_counts(n_envs: int, n_episodes: int, max_steps: int) -> None:
             raise ConfigError(f"{name} must be a positive integer, got {value}")
 
 
+@dataclasses.dataclass(frozen=True)
+class _Layout:
+    """Where a batch runs: one device, or a 1-D mesh of devices over the env axis."""
+
+    devices: tuple[jax.Device, ...]
+
+    @property
+    def mesh(self) -> Mesh:
+        return Mesh(np.array(self.devices), ("env",))
+
+    def put_replicated(self, tree: Any) -> Any:
+        return jax.device_put(tree, NamedSharding(self.mesh, P()))
+
+    def put_envs(self, x: np.ndarray) -> jax.Array:
+        """Shard a host array over devices along its first axis (each process its slices)."""
+        sharding = NamedSharding(self.mesh, P("env"))
+        return jax.make_array_from_callback(x.shape, sharding, lambda index: x[index])
+
+    def get(self, tree: Any) -> Any:
+        if jax.process_count() > 1:
+            return multihost_utils.process_allgather(tree, tiled=True)
+        return jax.device_get(tree)
+
+    def wrap(self, episode: Callable, record_actions: bool) -> Callable:
+        """The jitted episode function, `shard_map`ped so every device runs the same program on
+        its slice of envs. One device goes through the same path, so a run on D devices is the
+        same per-device program as a run on one device with 1/D of the batch."""
+        out_specs: Any = P("env")
+        if record_actions:
+            out_specs = (P("env"), P(None, "env"))
+        return jax.jit(
+            jax.shard_map(
+                episode,
+                mesh=self.mesh,
+                in_specs=(P(), P("env")),
+                out_specs=out_specs,
+                check_vma=False,
+            )
+        )
+
+
+def _peak_bytes(compiled: Any) -> int | None:
+    """XLA's estimate of a compiled function's device memory (arguments, outputs, scratch)."""
+    try:
+        m = compiled.memory_analysis()
+    except Exception:  # not every backend implements it
+        return None
+    if m is None:
+        return None
+    return int(m.temp_size_in_bytes + m.argument_size_in_bytes + m.output_size_in_bytes)
+
+
+def free_device_bytes(device: jax.Device) -> int | None:
+    """Bytes the device's allocator can still hand out (None on backends that do not say)."""
+    stats = device.memory_stats() or {}
+    if "bytes_limit" not in stats:
+        return None
+    return int(stats["bytes_limit"] - stats.get("bytes_in_use", 0))
+
+
+def _fit_batch(per_device: int, need: int | None, free: int | None, fraction: float) -> int:
+    """The per-device batch that fits `fraction` of `free` bytes, given that `per_device` envs
+    need `need` bytes (memory grows ~linearly with envs); a multiple of 64 when that large."""
+    if need is None or free is None or need <= fraction * free:
+        return per_device
+    target = int(per_device * fraction * free / need)
+    return max(1, target // 64 * 64 if target >= 64 else target)
+
+
 def run_seeds(
     scene: Scene,
     policy: Policy,
@@ -132,12 +209,19 @@ def run_seeds(
     max_steps: int,
     on_chunk: Callable[[int, int], None] | None = None,
     record_actions: bool = False,
+    memory_fraction: float = 0.85,
+    devices: Sequence[jax.Device] | None = None,
 ) -> tuple[dict[str, np.ndarray], RunTiming]:
     """Roll out every seed in chunks of `n_envs`; return per-seed numpy arrays and timings.
 
-    The loop runs on the physics backend's JAX device (the CPU for the `c` backend, so a GPU
-    machine does not bounce every control step between device and host).
+    The loop runs on the physics backend's devices (the host CPU for `c`, so a GPU machine
+    does not bounce every control step between device and host; every GPU for `mjx`/`warp`).
+    `n_envs` is rounded up to a multiple of the device count; if the compiled batch would need
+    more than `memory_fraction` of a device's free memory, it is shrunk (and recompiled) to
+    fit, and `RunTiming.n_envs` says what ran.
     With `record_actions`, the arrays include `actions`: (n_seeds, max_steps, action_size).
+
+    `devices` overrides the backend's choice (e.g. a subset of the GPUs).
 
     `on_chunk(done_episodes, total_episodes)` is called once compiled and after each chunk.
     """
@@ -145,18 +229,34 @@ def run_seeds(
     check_counts(n_envs, len(seeds), max_steps)
     if seeds.min() < 0 or seeds.max() >= 2**31:
         raise ConfigError(f"seeds must lie in [0, 2**31), got range [{seeds.min()}, {seeds.max()}]")
-    n_envs = min(n_envs, len(seeds))
+    layout = _Layout(tuple(devices or scene.backend.devices()))
+    n_dev = len(layout.devices)
+    per_device = -(-min(n_envs, len(seeds)) // n_dev)
+    limit = scene.backend.max_batch
+    if limit is not None and per_device > limit:
+        raise ConfigError(
+            f"{per_device} envs per device exceed the {scene.backend.name} backend's buffers "
+            f"(sized for batch_size={limit}); build the scene with a larger batch_size"
+        )
+    fn = layout.wrap(
+        make_episode_fn(scene, policy, max_steps, record_actions=record_actions), record_actions
+    )
+    params = layout.put_replicated(params) if params is not None else None
+
+    t0 = time.perf_counter()
+    compiled = fn.lower(params, layout.put_envs(np.zeros(per_device * n_dev, np.int32))).compile()
+    need, free = _peak_bytes(compiled), free_device_bytes(layout.devices[0])
+    fitted = _fit_batch(per_device, need, free, memory_fraction)
+    if fitted != per_device:
+        per_device = fitted
+        compiled = fn.lower(params, layout.put_envs(np.zeros(per_device * n_dev, np.int32)))
+        compiled = compiled.compile()
+        need = _peak_bytes(compiled)
+    compile_s = time.perf_counter() - t0
+    n_envs = per_device * n_dev
     n_chunks = -(-len(seeds) // n_envs)
     padded = np.concatenate([seeds, seeds[-1] + 1 + np.arange(n_chunks * n_envs - len(seeds))])
     padded = np.minimum(padded, 2**31 - 1).astype(np.int32)
-
-    device = scene.backend.jax_device
-    fn = jax.jit(make_episode_fn(scene, policy, max_steps, record_actions=record_actions))
-    put = (lambda x: jax.device_put(x, device)) if device is not None else jnp.asarray
-    params = put(params) if params is not None else None
-    t0 = time.perf_counter()
-    compiled = fn.lower(params, put(padded[:n_envs])).compile()
-    compile_s = time.perf_counter() - t0
     if on_chunk is not None:
         on_chunk(0, len(seeds))
 
@@ -164,7 +264,7 @@ def run_seeds(
     chunk_s: list[float] = []
     for c in range(n_chunks):
         t = time.perf_counter()
-        out = jax.device_get(compiled(params, put(padded[c * n_envs : (c + 1) * n_envs])))
+        out = layout.get(compiled(params, layout.put_envs(padded[c * n_envs : (c + 1) * n_envs])))
         chunk_s.append(time.perf_counter() - t)
         acc, actions = out if record_actions else (out, None)
         row = {f.name: np.asarray(getattr(acc, f.name)) for f in dataclasses.fields(acc)}
@@ -180,5 +280,7 @@ def run_seeds(
         chunk_s=tuple(chunk_s),
         scan_steps=max_steps,
         n_envs=n_envs,
+        n_devices=n_dev,
+        bytes_per_device=need,
     )
     return merged, timing

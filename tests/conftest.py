@@ -7,6 +7,7 @@ from pathlib import Path
 import jax
 import pytest
 
+from openral_mjx.physics import PhysicsSettings
 from openral_mjx.scenes import TabletopPush
 
 # Reuse XLA compilations across test runs on this machine (CI starts cold either way).
@@ -16,9 +17,15 @@ jax.config.update("jax_persistent_cache_min_compile_time_secs", 1.0)
 
 @pytest.fixture(scope="session")
 def push_c() -> TabletopPush:
-    return TabletopPush(backend="c", threads=2)
+    return TabletopPush(backend="c", settings=PhysicsSettings(threads=2))
 
 
 @pytest.fixture(scope="session")
 def push_mjx() -> TabletopPush:
     return TabletopPush(backend="mjx")
+
+
+@pytest.fixture(scope="session")
+def push_warp() -> TabletopPush:
+    """MuJoCo-Warp in its CPU mode (the kernels are built once per machine, then cached)."""
+    return TabletopPush(backend="warp", settings=PhysicsSettings(batch_size=8))

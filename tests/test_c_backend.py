@@ -5,13 +5,14 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
+from openral_mjx.physics import PhysicsSettings
 from openral_mjx.policies import make_policy
 from openral_mjx.rollout import run_seeds
 from openral_mjx.scenes import TabletopPush
 
 
 def test_same_episodes_whatever_the_thread_count(push_c):
-    one_thread = TabletopPush(backend="c", threads=1)
+    one_thread = TabletopPush(backend="c", settings=PhysicsSettings(threads=1))
     seeds = np.arange(6)
     runs = [
         run_seeds(s, make_policy("scripted", s), None, seeds=seeds, n_envs=6, max_steps=60)[0]
@@ -40,7 +41,7 @@ def test_callback_exception_is_a_clear_error_not_a_hang(push_c):
 
 
 def test_pool_can_close_and_reopen():
-    scene = TabletopPush(backend="c", threads=1)
+    scene = TabletopPush(backend="c", settings=PhysicsSettings(threads=1))
     step = jax.jit(scene.step)
     s = scene.reset(jax.random.PRNGKey(0))
     a = step(s, jnp.zeros(6)).obs

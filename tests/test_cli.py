@@ -51,7 +51,7 @@ def test_list(monkeypatch, capsys):
         (["--scene", "nope"], "unknown scene 'nope'; valid: tabletop_push"),
         (["--policy", "nope"], "unknown policy 'nope'; valid: random, scripted, zero"),
         (["--robot", "ur5"], "unknown robot 'ur5'; valid: so101"),
-        (["--backend", "gpu"], "unknown backend 'gpu'; valid: auto, mjx, c"),
+        (["--backend", "gpu"], "unknown backend 'gpu'; valid: auto, mjx, warp, c"),
         (["--opt", "goal_radiuss=0.1"], "unknown option for TabletopPushOptions 'goal_radiuss'"),
         (["--opt", "goal_radius"], "not of the form key=value"),
         (["--n-envs", "0"], "n_envs must be a positive integer, got 0"),

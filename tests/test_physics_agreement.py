@@ -1,4 +1,4 @@
-"""Both physics backends against MuJoCo C's own `mj_step` loop, on the composed scene.
+"""Every physics backend against MuJoCo C's own `mj_step` loop, on the composed scene.
 
 Reference: float64 `mj_step`, ctrl held for each control step's 10 substeps, from the scene's
 reset states (cube resting on the table: 4 box-box contacts from the start) under a fixed
@@ -79,6 +79,19 @@ def test_mjx_matches_mj_step(push_mjx, initial_qpos, reference):
     # cases over 200 steps: arm joints 2.6e-7 rad, resting-cube position 1.4e-4 m (contact
     # solver in float32), arm joint speeds 6.8e-6 rad/s at speeds up to 5 rad/s. Bounds
     # allow ~4x that.
+    np.testing.assert_allclose(got[..., robot], reference[..., robot], atol=1e-6)
+    np.testing.assert_allclose(got[..., a : a + 3], reference[..., a : a + 3], atol=5e-4)
+    np.testing.assert_allclose(got[..., nq + robot], reference[..., nq + robot], atol=3e-5)
+
+
+def test_warp_matches_mj_step(push_warp, initial_qpos, reference):
+    got = _backend_rollout(push_warp, initial_qpos, _actions(push_warp))
+    nq = push_warp.mj_model.nq
+    robot = push_warp.robot_qpos_adr
+    a = push_warp.cube_qpos_adr
+    # MuJoCo-Warp (CPU mode here) in float32, same solver settings. Measured worst cases over
+    # 200 steps: arm joints 2.9e-7 rad, resting-cube position 1.4e-4 m, arm joint speeds
+    # 2.2e-6 rad/s. Same bounds as MJX's JAX implementation.
     np.testing.assert_allclose(got[..., robot], reference[..., robot], atol=1e-6)
     np.testing.assert_allclose(got[..., a : a + 3], reference[..., a : a + 3], atol=5e-4)
     np.testing.assert_allclose(got[..., nq + robot], reference[..., nq + robot], atol=3e-5)

@@ -16,6 +16,8 @@ import jax.numpy as jnp
 import mujoco
 from flax import struct
 
+from openral_mjx.errors import ConfigError
+
 
 @dataclasses.dataclass(frozen=True)
 class QuantitySpec:
@@ -23,6 +25,30 @@ class QuantitySpec:
 
     bodies: tuple[str, ...] = ()
     sites: tuple[str, ...] = ()
+
+
+@dataclasses.dataclass(frozen=True)
+class PhysicsSettings:
+    """How a backend runs, as opposed to what it simulates (that is the scene's MjSpec).
+
+    Attributes:
+        threads: MuJoCo C worker threads (`c`); None: all cores.
+        batch_size: envs per device the backend sizes per-batch buffers for (`warp`: contact
+            and constraint capacity); the runner rejects larger per-device batches.
+        contacts_per_env: `warp` contact capacity per env (a buffer overflow marks the env
+            diverged, never silently wrong).
+    """
+
+    threads: int | None = None
+    batch_size: int = 4096
+    contacts_per_env: int = 32
+
+    def __post_init__(self) -> None:
+        if self.threads is not None and self.threads < 1:
+            raise ConfigError(f"threads must be >= 1, got {self.threads}")
+        for name in ("batch_size", "contacts_per_env"):
+            if getattr(self, name) < 1:
+                raise ConfigError(f"{name} must be >= 1, got {getattr(self, name)}")
 
 
 @struct.dataclass
@@ -52,13 +78,21 @@ class PhysicsBackend(abc.ABC):
         spec: the composed scene (not modified; backends compile their own copy).
         quantities: the bodies and sites to report.
         n_substeps: physics steps per control step (control held constant across them).
+        settings: how to run (threads, buffer sizes); each backend reads what applies to it.
     """
 
     name: ClassVar[str]
 
-    def __init__(self, spec: mujoco.MjSpec, quantities: QuantitySpec, n_substeps: int) -> None:
+    def __init__(
+        self,
+        spec: mujoco.MjSpec,
+        quantities: QuantitySpec,
+        n_substeps: int,
+        settings: PhysicsSettings | None = None,
+    ) -> None:
         self.quantity_spec = quantities
         self.n_substeps = n_substeps
+        self.settings = settings or PhysicsSettings()
         self.mj_model = spec.copy().compile()
         self.body_ids = tuple(self.mj_model.body(n).id for n in quantities.bodies)
         self.site_ids = tuple(self.mj_model.site(n).id for n in quantities.sites)
@@ -71,9 +105,17 @@ class PhysicsBackend(abc.ABC):
     def step(self, state: PhysicsState, ctrl: jax.Array) -> PhysicsState:
         """Hold `ctrl` for `n_substeps` physics steps."""
 
+    def select(self, keep: jax.Array, old: PhysicsState, new: PhysicsState) -> PhysicsState:
+        """One env: `old` where `keep` (a scalar bool), else `new` (freezes finished envs)."""
+        return jax.tree.map(lambda a, b: jnp.where(keep, a, b), old, new)
+
+    def devices(self) -> list[jax.Device]:
+        """The devices the runner shards envs over (default: every device JAX sees)."""
+        return list(jax.devices())
+
     @property
-    def jax_device(self) -> jax.Device | None:
-        """The device the jitted loop should run on (None: JAX's default)."""
+    def max_batch(self) -> int | None:
+        """Largest per-device batch this backend can run (None: unbounded)."""
         return None
 
     @property

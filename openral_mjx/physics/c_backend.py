@@ -21,8 +21,13 @@ import mujoco
 import numpy as np
 from mujoco import rollout
 
-from openral_mjx.errors import ConfigError
-from openral_mjx.physics.base import PhysicsBackend, PhysicsState, Quantities, QuantitySpec
+from openral_mjx.physics.base import (
+    PhysicsBackend,
+    PhysicsSettings,
+    PhysicsState,
+    Quantities,
+    QuantitySpec,
+)
 
 _FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS
 _LIVE: weakref.WeakSet[CBackend] = weakref.WeakSet()
@@ -46,8 +51,7 @@ def default_threads() -> int:
 class CBackend(PhysicsBackend):
     """MuJoCo's C engine (float64), multithreaded over the batch with `mujoco.rollout`.
 
-    Args:
-        threads: worker threads of the rollout pool (default: all available cores).
+    `settings.threads` worker threads step the batch (default: all available cores).
     """
 
     name = "c"
@@ -57,12 +61,10 @@ class CBackend(PhysicsBackend):
         spec: mujoco.MjSpec,
         quantities: QuantitySpec,
         n_substeps: int,
-        threads: int | None = None,
+        settings: PhysicsSettings | None = None,
     ) -> None:
-        super().__init__(spec, quantities, n_substeps)
-        if threads is not None and threads < 1:
-            raise ConfigError(f"threads must be >= 1, got {threads}")
-        self.threads = threads or default_threads()
+        super().__init__(spec, quantities, n_substeps, settings)
+        self.threads = self.settings.threads or default_threads()
         self._model = self._model_with_pose_sensors(spec, quantities)
         m = self._model
         self.nq, self.nv, self.nu = m.nq, m.nv, m.nu
@@ -205,10 +207,10 @@ class CBackend(PhysicsBackend):
         """The model MuJoCo C steps: the scene plus this backend's pose sensors."""
         return self._model
 
-    @property
-    def jax_device(self) -> jax.Device:
-        """The host CPU: the physics is on the host, so the loop around it stays there too."""
-        return jax.devices("cpu")[0]
+    def devices(self) -> list[jax.Device]:
+        """The host CPU alone: the physics is on the host (one thread pool), so the loop around
+        it stays there too rather than bouncing every control step through an accelerator."""
+        return [jax.devices("cpu")[0]]
 
     def describe(self) -> dict[str, Any]:
         return {**super().describe(), "threads": self.threads}

@@ -16,6 +16,7 @@ with contextlib.redirect_stdout(io.StringIO()):
 
 from openral_mjx.physics.base import (
     PhysicsBackend,
+    PhysicsSettings,
     PhysicsState,
     Quantities,
     QuantitySpec,
@@ -24,30 +25,49 @@ from openral_mjx.physics.base import (
 
 
 class MjxBackend(PhysicsBackend):
-    """`mjx.step` under `lax.fori_loop`; the state's `data` is an `mjx.Data`."""
+    """`mjx.step` under `lax.fori_loop`; the state's `data` is an `mjx.Data`.
+
+    Subclasses change the MJX implementation (`impl`) by overriding `_put_model`,
+    `_make_data` and `_data_ok`; the stepping and the readout are shared.
+    """
 
     name = "mjx"
     impl = "jax"
 
-    def __init__(self, spec: mujoco.MjSpec, quantities: QuantitySpec, n_substeps: int) -> None:
-        super().__init__(spec, quantities, n_substeps)
-        self.mx = mjx.put_model(self.mj_model, impl=self.impl)
+    def __init__(
+        self,
+        spec: mujoco.MjSpec,
+        quantities: QuantitySpec,
+        n_substeps: int,
+        settings: PhysicsSettings | None = None,
+    ) -> None:
+        super().__init__(spec, quantities, n_substeps, settings)
+        self.mx = self._put_model()
         self._body_ids = jnp.asarray(self.body_ids, dtype=jnp.int32)
         self._site_ids = jnp.asarray(self.site_ids, dtype=jnp.int32)
 
+    def _put_model(self) -> mjx.Model:
+        return mjx.put_model(self.mj_model, impl=self.impl)
+
+    def _make_data(self) -> mjx.Data:
+        return mjx.make_data(self.mx)
+
+    def _data_ok(self, d: mjx.Data) -> jax.Array:
+        """False where this env's physics can no longer be trusted."""
+        return all_finite(d.qpos, d.qvel)
+
     def _quantities(self, d: mjx.Data) -> Quantities:
-        qpos, qvel = d.qpos, d.qvel
         return Quantities(
-            qpos=qpos,
-            qvel=qvel,
+            qpos=d.qpos,
+            qvel=d.qvel,
             body_pos=d.xpos[self._body_ids],
             body_quat=d.xquat[self._body_ids],
             site_pos=d.site_xpos[self._site_ids],
-            ok=all_finite(qpos, qvel),
+            ok=self._data_ok(d),
         )
 
     def init(self, qpos: jax.Array, qvel: jax.Array) -> PhysicsState:
-        d = mjx.make_data(self.mx).replace(qpos=qpos, qvel=qvel)
+        d = self._make_data().replace(qpos=qpos, qvel=qvel)
         d = mjx.forward(self.mx, d)
         return PhysicsState(data=d, quantities=self._quantities(d))
 

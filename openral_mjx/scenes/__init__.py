@@ -8,6 +8,7 @@ from typing import Any
 
 from openral_mjx.errors import ConfigError
 from openral_mjx.options import from_mapping
+from openral_mjx.physics import PhysicsSettings
 from openral_mjx.registry import Registry
 from openral_mjx.scenes.base import Scene, State
 from openral_mjx.scenes.tabletop_push import TabletopPush, TabletopPushOptions
@@ -31,15 +32,15 @@ def make_scene(
     overrides: Mapping[str, Any] | None = None,
     *,
     backend: str = "auto",
-    threads: int | None = None,
+    settings: PhysicsSettings | None = None,
 ) -> Scene:
-    """Build scene `name` with option `overrides` (validated) on `backend`."""
+    """Build scene `name` with option `overrides` (validated) on `backend` run with `settings`."""
     entry = SCENES.get(name)
     options = from_mapping(entry.options_cls, dict(overrides or {}))
     robot = getattr(options, "robot", None)
     if entry.fixed_robot is not None and robot not in (None, entry.fixed_robot):
         raise ConfigError(f"scene {name!r} requires robot {entry.fixed_robot!r}, not {robot!r}")
-    return entry.build(options, backend=backend, threads=threads)
+    return entry.build(options, backend=backend, settings=settings)
 
 
 __all__ = [

@@ -32,7 +32,7 @@ import numpy as np
 from openral_mjx import fixed_order as fo
 from openral_mjx.errors import ConfigError
 from openral_mjx.options import check
-from openral_mjx.physics import QuantitySpec, make_backend
+from openral_mjx.physics import PhysicsSettings, QuantitySpec, make_backend
 from openral_mjx.physics.kinematics import site_kinematics
 from openral_mjx.policies.base import Policy
 from openral_mjx.policies.push_expert import push_expert
@@ -236,7 +236,7 @@ class TabletopPush(Scene):
         options: TabletopPushOptions | None = None,
         *,
         backend: str = "auto",
-        threads: int | None = None,
+        settings: PhysicsSettings | None = None,
     ) -> None:
         self.options = o = options or TabletopPushOptions()
         robot = o.robot_spec()
@@ -248,7 +248,7 @@ class TabletopPush(Scene):
             self.spec,
             QuantitySpec(bodies=("cube",), sites=(robot.ee_site,)),
             o.n_substeps,
-            threads=threads,
+            settings,
         )
         m = self.mj_model
         cube_joint = m.joint("cube_joint")

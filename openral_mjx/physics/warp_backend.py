@@ -1,0 +1,106 @@
+"""MJX with the MuJoCo-Warp implementation: Warp kernels called from JAX (CUDA; CPU for tests).
+
+Warp keeps contacts in one buffer shared by every env of a batch (`naconmax` = capacity per env
+x envs per device) and constraints in per-env rows (`njmax`), so buffers are sized for a batch
+at construction (`PhysicsSettings.batch_size`, `contacts_per_env`). An env whose contacts or
+constraints overflow those buffers, or whose state goes non-finite, reports `ok = False` and
+the runner counts it diverged: an overflow is never a silently wrong episode. Hitting the
+solver's iteration limit is expected with the scenes' few Newton iterations (MuJoCo C does the
+same), so those two warnings are masked rather than printed every step.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+
+import jax
+import jax.numpy as jnp
+import mujoco
+
+from openral_mjx.errors import ConfigError
+from openral_mjx.physics.base import PhysicsSettings, PhysicsState, QuantitySpec, all_finite
+from openral_mjx.physics.mjx_backend import MjxBackend, mjx
+
+INSTALL_HINT = "pip install 'openral_mjx[warp]' (warp-lang)"
+
+
+def warp_installed() -> bool:
+    """Whether warp-lang can be imported (without importing it)."""
+    return importlib.util.find_spec("warp") is not None
+
+
+class WarpBackend(MjxBackend):
+    """`mjx.step` with `impl='warp'`; same scenes and task logic as `mjx`."""
+
+    name = "warp"
+    impl = "warp"
+
+    def __init__(
+        self,
+        spec: mujoco.MjSpec,
+        quantities: QuantitySpec,
+        n_substeps: int,
+        settings: PhysicsSettings | None = None,
+    ) -> None:
+        if not warp_installed():
+            raise ConfigError(f"backend 'warp' needs warp-lang; install it with {INSTALL_HINT}")
+        import warp
+
+        # No banner or per-kernel build lines in our CLI's output; warnings still show.
+        warp.config.quiet = True
+        warp.config.log_level = max(warp.config.log_level, warp.LOG_WARNING)
+        from mujoco.mjx.third_party.mujoco_warp._src.types import OverflowType
+
+        # Overflows that make an env's physics wrong (dropped contacts or constraints).
+        self._fatal = int(
+            OverflowType.NEFC
+            | OverflowType.NJMAX_NNZ
+            | OverflowType.BROADPHASE
+            | OverflowType.NARROWPHASE
+            | OverflowType.CCD
+            | OverflowType.NVMAX
+            | OverflowType.EPA_HORIZON
+        )
+        self._warn = int(OverflowType.ALL & ~(OverflowType.ITERATIONS | OverflowType.LS_ITERATIONS))
+        super().__init__(spec, quantities, n_substeps, settings)
+        m, s = self.mj_model, self.settings
+        self.naconmax = s.contacts_per_env * s.batch_size
+        # Rows per env: a pyramidal friction cone takes 2 (condim - 1) rows per contact (<= 10
+        # for condim 6), plus one row per dof for joint limits and one for friction loss.
+        self.njmax = 10 * s.contacts_per_env + 2 * m.nv + m.neq * 6
+
+    def _put_model(self) -> mjx.Model:
+        mx = mjx.put_model(self.mj_model, impl="warp")
+        opt_impl = mx.opt._impl.replace(warn_overflow=self._warn)
+        return mx.replace(opt=mx.opt.replace(_impl=opt_impl))
+
+    def _make_data(self) -> mjx.Data:
+        return mjx.make_data(self.mj_model, impl="warp", naconmax=self.naconmax, njmax=self.njmax)
+
+    def _data_ok(self, d: mjx.Data) -> jax.Array:
+        overflow = jnp.bitwise_and(d._impl.overflow, self._fatal)
+        return all_finite(d.qpos, d.qvel) & jnp.all(overflow == 0)
+
+    def select(self, keep: jax.Array, old: PhysicsState, new: PhysicsState) -> PhysicsState:
+        # The contact buffer is shared by the batch, so only per-env fields can be frozen;
+        # `Data.where` knows which those are.
+        data = new.data.where(keep, old.data)
+        q = jax.tree.map(lambda a, b: jnp.where(keep, a, b), old.quantities, new.quantities)
+        return PhysicsState(data=data, quantities=q)
+
+    def devices(self) -> list[jax.Device]:
+        """CUDA GPUs where there are any, else the CPU (Warp's CPU mode, for tests)."""
+        gpus = [d for d in jax.devices() if d.platform == "gpu"]
+        return gpus or [jax.devices("cpu")[0]]
+
+    @property
+    def max_batch(self) -> int:
+        return self.settings.batch_size
+
+    def describe(self) -> dict:
+        return {
+            **super().describe(),
+            "naconmax": self.naconmax,
+            "njmax": self.njmax,
+            "batch_size": self.settings.batch_size,
+        }

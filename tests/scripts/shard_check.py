@@ -1,0 +1,32 @@
+"""Run in a fresh process with XLA_FLAGS=--xla_force_host_platform_device_count=4 (see
+tests/test_sharding.py): shard envs over 4 CPU devices and compare with one device."""
+
+import json
+import sys
+
+import jax
+import numpy as np
+
+from openral_mjx.physics import PhysicsSettings
+from openral_mjx.policies import make_policy
+from openral_mjx.rollout import run_seeds
+from openral_mjx.scenes import TabletopPush
+
+backend = sys.argv[1]
+scene = TabletopPush(backend=backend, settings=PhysicsSettings(batch_size=8))
+policy = make_policy("scripted", scene)
+kw = dict(seeds=np.arange(10), max_steps=int(sys.argv[2]))
+devices = jax.devices()
+sharded, t4 = run_seeds(scene, policy, None, n_envs=8, devices=devices, **kw)
+single, t1 = run_seeds(scene, policy, None, n_envs=8, devices=devices[:1], **kw)
+print(
+    json.dumps(
+        {
+            "n_devices": [t4.n_devices, t1.n_devices],
+            "n_envs": [t4.n_envs, t1.n_envs],
+            "chunks": [len(t4.chunk_s), len(t1.chunk_s)],
+            "equal": {k: bool(np.array_equal(sharded[k], single[k])) for k in sharded},
+            "success": sharded["success"].tolist(),
+        }
+    )
+)

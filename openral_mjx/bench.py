@@ -3,8 +3,9 @@
 Per batch size N, on the same scene model and substeps, measured side by side:
 
 * evaluator: the full runner (scripted policy, scene logic, freezing) in control steps/s;
-* raw ceiling of the chosen backend: for `mjx`, a bare `vmap(scan(mjx.step x substeps))`;
-  for `c`, bare `mujoco.rollout` calls (one per control step, same threads) with no JAX;
+* raw ceiling of the chosen backend: for `mjx`/`warp`, a bare `vmap(scan(mjx.step x
+  substeps))` with the same implementation and buffers; for `c`, bare `mujoco.rollout` calls
+  (one per control step, same threads) with no JAX;
 * MuJoCo C on all cores (`mujoco.rollout`), the CPU reference.
 
 The raw runs replay the evaluator's recorded actions open-loop from the same reset states, so
@@ -47,7 +48,7 @@ class BenchArgs:
 
     scene: str = "tabletop_push"
     backend: str = "auto"
-    """auto, mjx or c."""
+    """auto, mjx, warp or c."""
     n: tuple[int, ...] = (1024,)
     """Batch sizes to measure."""
     max_steps: int = 200
@@ -61,8 +62,9 @@ class BenchArgs:
 
 
 def raw_mjx(scene, actions: np.ndarray) -> tuple[float, float]:
-    """Bare `vmap(scan(mjx.step))` replaying the evaluator's actions open-loop from the same
-    reset states (so contacts and solver work match): (compile s, control steps/s)."""
+    """Bare `vmap(scan(mjx.step))` (the scene backend's MJX implementation) replaying the
+    evaluator's actions open-loop from the same reset states (so contacts and solver work
+    match): (compile s, control steps/s)."""
     from openral_mjx.physics.mjx_backend import mjx
 
     mx, n_sub = scene.backend.mx, scene.options.n_substeps
@@ -139,7 +141,7 @@ def run(args: BenchArgs) -> int:
         )
         evaluator = n * args.max_steps / timing.run_s
         row = {"n": n, "evaluator_steps_per_s": evaluator, "evaluator_compile_s": timing.compile_s}
-        if backend == "mjx":
+        if backend in ("mjx", "warp"):
             row["raw_compile_s"], row["raw_steps_per_s"] = raw_mjx(scene, arrays["actions"])
             row["peak_device_bytes"] = peak_memory_bytes()
         n_c = min(n, args.c_max_envs)

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import dataclasses
 import datetime as dt
+import sys
 from pathlib import Path
 
 import tyro
@@ -53,6 +54,9 @@ class EvalArgs:
     """Scene option overrides, KEY=VALUE (after --config)."""
     threads: int | None = None
     """Threads of the C backend (default: all cores)."""
+    contacts_per_env: int | None = None
+    """Contact buffer per env of the warp backend (default 32); overflowing envs count as
+    diverged."""
     out: Path | None = None
     """Report path (default: results/SCENE_POLICY_TIMESTAMP.json)."""
     compile_cache: bool = True
@@ -109,6 +113,7 @@ def _reproduce(args: EvalArgs, backend: str, out: Path) -> str:
         ("--robot-mjcf", args.robot_mjcf),
         ("--config", args.config),
         ("--threads", args.threads),
+        ("--contacts-per-env", args.contacts_per_env),
     ):
         if value is not None:
             argv += [flag, str(value)]
@@ -154,12 +159,19 @@ def run(args: EvalArgs) -> int:
             max_steps=args.max_steps,
             backend=backend,
             threads=args.threads,
+            contacts_per_env=args.contacts_per_env,
             options=options,
             command=_reproduce(args, backend, out),
             on_chunk=on_chunk,
         )
     save_report(report, out)
     print(report.summary())
+    if report.n_envs < min(args.n_envs, report.n_episodes):
+        print(
+            f"note: ran {report.n_envs} envs at a time: --n-envs {args.n_envs} would not fit "
+            "in device memory",
+            file=sys.stderr,
+        )
     print(f"report: {out}")
     return 0
 

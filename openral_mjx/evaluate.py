@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import datetime as dt
 import importlib.metadata
 import platform
@@ -86,6 +87,7 @@ def evaluate(
     max_steps: int | None = None,
     backend: str = "auto",
     threads: int | None = None,
+    contacts_per_env: int | None = None,
     options: Mapping[str, Any] | None = None,
     command: str = "",
     on_chunk: Callable[[int, int], None] | None = None,
@@ -100,6 +102,8 @@ def evaluate(
         raise ConfigError(f"seed must be >= 0, got {seed}")
     if isinstance(scene, str):
         settings = PhysicsSettings(threads=threads, batch_size=n_envs)
+        if contacts_per_env is not None:
+            settings = dataclasses.replace(settings, contacts_per_env=contacts_per_env)
         scene = make_scene(scene, options, backend=backend, settings=settings)
     pol = make_policy(policy, scene)
     steps = scene.max_steps if max_steps is None else max_steps

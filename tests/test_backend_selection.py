@@ -1,4 +1,4 @@
-"""`--backend auto` picks warp > mjx > c by what the machine has; a missing extra is a clear error."""
+"""`--backend auto` picks warp > mjx > c by what the machine has; a missing extra is an error."""
 
 import pytest
 

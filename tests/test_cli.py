@@ -60,6 +60,7 @@ def test_list(monkeypatch, capsys):
         (["--config", "missing.yaml"], "config file 'missing.yaml' does not exist"),
         (["--robot-mjcf", "missing.xml"], "robot MJCF 'missing.xml' does not exist"),
         (["--threads", "0"], "threads must be >= 1, got 0"),
+        (["--contacts-per-env", "0"], "contacts_per_env must be >= 1, got 0"),
     ],
 )
 def test_bad_input(monkeypatch, capsys, tmp_path, argv, needle):
@@ -98,3 +99,16 @@ def test_process_exit_code_and_no_traceback(tmp_path):
     assert proc.returncode == 2
     assert proc.stderr.strip() == "error: unknown scene 'nope'; valid: tabletop_push"
     assert not (tmp_path / "r").exists()
+
+
+def test_warp_without_warp_lang(monkeypatch, capsys, tmp_path):
+    import openral_mjx.physics.warp_backend as warp_backend
+
+    monkeypatch.setattr(warp_backend, "warp_installed", lambda: False)
+    out_path = tmp_path / "r.json"
+    code, _, err = run_cli(monkeypatch, capsys, "--backend", "warp", "--out", str(out_path))
+    assert code == 2 and not out_path.exists()
+    assert err.strip() == (
+        "error: backend 'warp' needs warp-lang; install it with pip install 'openral_mjx[warp]'"
+        " (warp-lang)"
+    )

@@ -67,8 +67,12 @@ class MjxBackend(PhysicsBackend):
         )
 
     def init(self, qpos: jax.Array, qvel: jax.Array) -> PhysicsState:
+        # Kinematics alone yields every quantity task logic reads (poses); the first step
+        # recomputes the rest (`mj_step` begins with a full forward pass), so the trajectory is
+        # the same as after `mjx.forward`, which would double the traced physics and add
+        # seconds to every compile.
         d = self._make_data().replace(qpos=qpos, qvel=qvel)
-        d = mjx.forward(self.mx, d)
+        d = mjx.kinematics(self.mx, d)
         return PhysicsState(data=d, quantities=self._quantities(d))
 
     def step(self, state: PhysicsState, ctrl: jax.Array) -> PhysicsState:

@@ -12,6 +12,7 @@ from typing import Any
 import jax
 import numpy as np
 
+import openral_mjx
 from openral_mjx.errors import ConfigError
 from openral_mjx.options import to_dict
 from openral_mjx.physics import PhysicsSettings
@@ -21,11 +22,12 @@ from openral_mjx.scenes import Scene, make_scene
 from openral_mjx.schema import EpisodeResult, EvalReport, TaskRow
 from openral_mjx.stats import wilson_interval
 
-_PACKAGES = ("openral_mjx", "jax", "jaxlib", "mujoco", "mujoco-mjx", "flax", "numpy")
+_PACKAGES = ("jax", "jaxlib", "mujoco", "mujoco-mjx", "flax", "numpy")
 
 
 def package_versions() -> dict[str, str]:
-    out = {"python": platform.python_version()}
+    """Versions of Python and the packages that decide a result (source-tree runs included)."""
+    out = {"python": platform.python_version(), "openral_mjx": openral_mjx.__version__}
     for name in _PACKAGES:
         try:
             out[name] = importlib.metadata.version(name)

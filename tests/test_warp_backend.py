@@ -44,3 +44,20 @@ def test_batch_larger_than_buffers_is_rejected(push_warp):
     pol = make_policy("zero", push_warp)
     with pytest.raises(ConfigError, match="batch_size=8"):
         run_seeds(push_warp, pol, None, seeds=np.arange(16), n_envs=16, max_steps=2)
+
+
+def test_diverged_env_is_parked_and_spares_its_neighbours(push_warp):
+    """A NaN env stays diverged, is parked at the reference pose (finite again, so it cannot
+    flood the batch's shared contact buffer) and leaves the other env's physics untouched."""
+    scene, n = push_warp, 2
+    state = jax.vmap(scene.reset)(jax.vmap(jax.random.PRNGKey)(jnp.arange(n)))
+    q = state.physics.quantities
+    bad_qvel = q.qvel.at[0].set(jnp.nan)
+    poisoned = state.replace(physics=jax.vmap(scene.backend.init)(q.qpos, bad_qvel))
+    healthy = state.replace(physics=jax.vmap(scene.backend.init)(q.qpos, q.qvel))
+    step = jax.jit(jax.vmap(scene.step))
+    action = jnp.zeros((n, scene.action_size))
+    a, b = step(poisoned, action), step(healthy, action)
+    assert a.metrics["diverged"].tolist() == [True, False]
+    assert bool(jnp.isfinite(a.physics.quantities.qpos).all())
+    np.testing.assert_array_equal(a.physics.quantities.qpos[1], b.physics.quantities.qpos[1])

@@ -105,10 +105,6 @@ class PhysicsBackend(abc.ABC):
     def step(self, state: PhysicsState, ctrl: jax.Array) -> PhysicsState:
         """Hold `ctrl` for `n_substeps` physics steps."""
 
-    def select(self, keep: jax.Array, old: PhysicsState, new: PhysicsState) -> PhysicsState:
-        """One env: `old` where `keep` (a scalar bool), else `new` (freezes finished envs)."""
-        return jax.tree.map(lambda a, b: jnp.where(keep, a, b), old, new)
-
     def devices(self) -> list[jax.Device]:
         """The devices the runner shards envs over (default: every device JAX sees)."""
         return list(jax.devices())

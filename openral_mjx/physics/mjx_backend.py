@@ -45,6 +45,7 @@ class MjxBackend(PhysicsBackend):
         self.mx = self._put_model()
         self._body_ids = jnp.asarray(self.body_ids, dtype=jnp.int32)
         self._site_ids = jnp.asarray(self.site_ids, dtype=jnp.int32)
+        self._qpos0 = jnp.asarray(self.mj_model.qpos0, dtype=jnp.float32)
 
     def _put_model(self) -> mjx.Model:
         return mjx.put_model(self.mj_model, impl=self.impl)
@@ -76,7 +77,15 @@ class MjxBackend(PhysicsBackend):
         return PhysicsState(data=d, quantities=self._quantities(d))
 
     def step(self, state: PhysicsState, ctrl: jax.Array) -> PhysicsState:
-        d = state.data.replace(ctrl=ctrl)
+        # A diverged env (already counted a failure) is parked at the reference pose, so its
+        # garbage cannot spread, e.g. into Warp's contact buffer shared by the batch.
+        d, ok = state.data, state.quantities.ok
+        d = d.replace(
+            qpos=jnp.where(ok, d.qpos, self._qpos0),
+            qvel=jnp.where(ok, d.qvel, 0.0),
+            qacc_warmstart=jnp.where(ok, d.qacc_warmstart, 0.0),
+            ctrl=ctrl,
+        )
         d = jax.lax.fori_loop(0, self.n_substeps, lambda _, x: mjx.step(self.mx, x), d)
         q = self._quantities(d)
         return PhysicsState(data=d, quantities=q.replace(ok=q.ok & state.quantities.ok))

@@ -18,7 +18,7 @@ import jax.numpy as jnp
 import mujoco
 
 from openral_mjx.errors import ConfigError
-from openral_mjx.physics.base import PhysicsSettings, PhysicsState, QuantitySpec, all_finite
+from openral_mjx.physics.base import PhysicsSettings, QuantitySpec, all_finite
 from openral_mjx.physics.mjx_backend import MjxBackend, mjx
 
 INSTALL_HINT = "pip install 'openral_mjx[warp]' (warp-lang)"
@@ -80,13 +80,6 @@ class WarpBackend(MjxBackend):
     def _data_ok(self, d: mjx.Data) -> jax.Array:
         overflow = jnp.bitwise_and(d._impl.overflow, self._fatal)
         return all_finite(d.qpos, d.qvel) & jnp.all(overflow == 0)
-
-    def select(self, keep: jax.Array, old: PhysicsState, new: PhysicsState) -> PhysicsState:
-        # The contact buffer is shared by the batch, so only per-env fields can be frozen;
-        # `Data.where` knows which those are.
-        data = new.data.where(keep, old.data)
-        q = jax.tree.map(lambda a, b: jnp.where(keep, a, b), old.quantities, new.quantities)
-        return PhysicsState(data=data, quantities=q)
 
     def devices(self) -> list[jax.Device]:
         """CUDA GPUs where there are any, else the CPU (Warp's CPU mode, for tests)."""

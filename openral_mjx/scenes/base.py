@@ -82,17 +82,6 @@ class Scene(abc.ABC):
         """The compiled scene (as the physics backend sees it, minus backend-private additions)."""
         return self.backend.mj_model
 
-    def select(self, keep: jax.Array, old: State, new: State) -> State:
-        """One env: `old` where `keep` (a scalar bool), else `new`; the runner freezes finished
-        envs with it. Physics goes through the backend, which knows which fields are per env."""
-        physics = self.backend.select(keep, old.physics, new.physics)
-        rest = jax.tree.map(
-            lambda a, b: jnp.where(keep, a, b),
-            old.replace(physics=None),
-            new.replace(physics=None),
-        )
-        return rest.replace(physics=physics)
-
     def action_bounds(self) -> tuple[jax.Array, jax.Array]:
         """Per-actuator (low, high) control limits."""
         r = jnp.asarray(self.mj_model.actuator_ctrlrange, dtype=jnp.float32)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import datetime as dt
+import functools
 import importlib.metadata
 import platform
 from collections.abc import Callable, Mapping
@@ -12,13 +13,15 @@ from typing import Any
 import jax
 import numpy as np
 
+from openral_mjx.breakdown import breakdown
 from openral_mjx.errors import ConfigError
 from openral_mjx.options import to_dict
 from openral_mjx.physics import PhysicsSettings
 from openral_mjx.policies import make_policy
 from openral_mjx.rollout import RunTiming, check_counts, run_seeds
 from openral_mjx.scenes import Scene, make_scene
-from openral_mjx.schema import EpisodeResult, EvalReport, TaskRow
+from openral_mjx.schema import EpisodeResult, EvalReport, SequentialInfo, TaskRow
+from openral_mjx.sequential import RULE, SequentialDesign
 from openral_mjx.stats import wilson_interval
 
 _PACKAGES = ("openral_mjx", "jax", "jaxlib", "mujoco", "mujoco-mjx", "flax", "numpy")
@@ -42,8 +45,13 @@ def device_description(scene: Scene) -> str:
     return f"{devices[0].platform}: {devices[0].device_kind} x{len(devices)}"
 
 
+def significant(values: np.ndarray, digits: int) -> list[float]:
+    """Round to `digits` significant digits (float32 carries ~7): compact, honest JSON."""
+    return [float(f"{v:.{digits}g}") for v in np.asarray(values, np.float64).tolist()]
+
+
 def episode_results(
-    arrays: Mapping[str, np.ndarray],
+    arrays: Mapping[str, Any],
     seeds: np.ndarray,
     timing: RunTiming,
     control_dt: float,
@@ -51,26 +59,32 @@ def episode_results(
 ) -> list[EpisodeResult]:
     """Turn the runner's per-env arrays into `EpisodeResult`s (latency from chunk timings)."""
     budget_ms = 1000 * control_dt
-    chunk_ms = [1000 * s / timing.scan_steps for s in timing.chunk_s]
+    chunk_ms = [round(1000 * s / timing.scan_steps, 4) for s in timing.chunk_s]
     max_ms = max(chunk_ms)
+    factors = {k: significant(v, 6) for k, v in arrays["factors"].items()}
+    rewards = significant(arrays["total_reward"], 7)
+    steps = arrays["steps"].tolist()
+    success = arrays["success"].tolist()
+    diverged = arrays["diverged"].tolist()
+    first = arrays["first_success_step"].tolist()
     results = []
-    for i, seed in enumerate(seeds):
+    for i, seed in enumerate(seeds.tolist()):
         mean_ms = chunk_ms[i // timing.n_envs]
-        steps = int(arrays["steps"][i])
         results.append(
             EpisodeResult(
-                success=bool(arrays["success"][i]),
-                steps=steps,
-                total_reward=float(arrays["total_reward"][i]),
+                success=success[i],
+                steps=steps[i],
+                total_reward=rewards[i],
                 mean_step_latency_ms=mean_ms,
                 max_step_latency_ms=max_ms,
                 latency_budget_ms=budget_ms,
-                budget_violations=steps if mean_ms > budget_ms else 0,
+                budget_violations=steps[i] if mean_ms > budget_ms else 0,
                 metadata={
                     **metadata,
-                    "seed": int(seed),
-                    "diverged": bool(arrays["diverged"][i]),
-                    "first_success_step": int(arrays["first_success_step"][i]),
+                    "seed": seed,
+                    "diverged": diverged[i],
+                    "first_success_step": first[i],
+                    "factors": {k: v[i] for k, v in factors.items()},
                 },
             )
         )
@@ -83,6 +97,9 @@ def evaluate(
     *,
     n_envs: int = 1024,
     n_episodes: int | None = None,
+    target_halfwidth: float | None = None,
+    max_episodes: int | None = None,
+    factor_bins: int = 5,
     seed: int = 0,
     max_steps: int | None = None,
     backend: str = "auto",
@@ -94,12 +111,21 @@ def evaluate(
 ) -> EvalReport:
     """Evaluate `policy` on seeds `seed .. seed + n_episodes - 1` and return the report.
 
-    Raises `ConfigError` for unknown names, bad options and non-positive counts.
+    With `target_halfwidth`, run sequentially instead: chunks of `n_envs` seeds until the
+    success-rate interval's half-width is at most the target, or `max_episodes` (default: the
+    worst case, rate 1/2); the report's interval is then exact for that stopping rule (see
+    `openral_mjx.sequential`). Raises `ConfigError` for unknown names, bad options and
+    non-positive counts.
     """
+    design = _design(n_envs, n_episodes, target_halfwidth, max_episodes)
+    if design is not None:
+        n_episodes = design.max_episodes
     n_episodes = n_envs if n_episodes is None else n_episodes
     check_counts(n_envs, n_episodes, 1 if max_steps is None else max_steps)
     if seed < 0:
         raise ConfigError(f"seed must be >= 0, got {seed}")
+    if factor_bins < 1:
+        raise ConfigError(f"factor_bins must be a positive integer, got {factor_bins}")
     if isinstance(scene, str):
         settings = PhysicsSettings(threads=threads, batch_size=n_envs)
         if contacts_per_env is not None:
@@ -112,8 +138,17 @@ def evaluate(
         jax.random.PRNGKey(seed), jax.ShapeDtypeStruct((scene.observation_size,), np.float32)
     )
     arrays, timing = run_seeds(
-        scene, pol, params, seeds=seeds, n_envs=n_envs, max_steps=steps, on_chunk=on_chunk
+        scene,
+        pol,
+        params,
+        seeds=seeds,
+        n_envs=n_envs,
+        max_steps=steps,
+        on_chunk=on_chunk,
+        until=None if design is None else functools.partial(_stops, design),
     )
+    n_episodes = len(arrays["success"])
+    seeds = seeds[:n_episodes]
     meta = {
         "scene": scene.name,
         "task": scene.task,
@@ -124,6 +159,20 @@ def evaluate(
     episodes = episode_results(arrays, seeds, timing, scene.control_dt, meta)
     successes = int(arrays["success"].sum())
     low, high = wilson_interval(successes, n_episodes)
+    sequential = None
+    if design is not None:
+        look = design.looks.index(n_episodes)
+        low, high = design.interval(look, successes)
+        sequential = SequentialInfo(
+            target_halfwidth=design.halfwidth,
+            max_episodes=design.max_episodes,
+            chunk=timing.n_envs,
+            looks=look + 1,
+            stopped="target" if design.meets_target(look, successes) else "max_episodes",
+            halfwidth=(high - low) / 2,
+            rule=RULE,
+        )
+    factors = {k: [e.metadata["factors"][k] for e in episodes] for k in arrays["factors"]}
     simulated = len(timing.chunk_s) * timing.n_envs * timing.scan_steps
     return EvalReport(
         scene=scene.name,
@@ -141,9 +190,10 @@ def evaluate(
         ci_low=low,
         ci_high=high,
         confidence=0.95,
-        ci_method="wilson",
+        ci_method="wilson" if design is None else "sequential-exact",
         diverged=int(arrays["diverged"].sum()),
         per_task=[TaskRow(scene.task, n_episodes, successes, successes / n_episodes, low, high)],
+        breakdown=breakdown(factors, arrays["success"], factor_bins),
         env_steps_per_s=simulated / timing.run_s,
         episodes_per_s=n_episodes / timing.run_s,
         compile_s=timing.compile_s,
@@ -154,7 +204,34 @@ def evaluate(
         command=command,
         created_at=dt.datetime.now(dt.UTC).isoformat(timespec="seconds"),
         episodes=episodes,
+        sequential=sequential,
     )
+
+
+def _stops(design: SequentialDesign, arrays: Mapping[str, Any]) -> bool:
+    """The sequential rule after a chunk: the look is the number of episodes run so far."""
+    look = design.looks.index(len(arrays["success"]))
+    return design.stops(look, int(arrays["success"].sum()))
+
+
+def _design(
+    n_envs: int, n_episodes: int | None, target: float | None, max_episodes: int | None
+) -> SequentialDesign | None:
+    """The sequential design for `target_halfwidth`, or None for a fixed episode count."""
+    if target is None:
+        if max_episodes is not None:
+            raise ConfigError(
+                "max_episodes caps a sequential run: give target_halfwidth too "
+                "(or n_episodes for a fixed count)"
+            )
+        return None
+    if n_episodes is not None:
+        raise ConfigError(
+            "n_episodes and target_halfwidth exclude each other: a sequential run decides "
+            "how many episodes it needs (cap it with max_episodes)"
+        )
+    check_counts(n_envs, 1, 1)
+    return SequentialDesign.in_chunks(n_envs, target, max_episodes)
 
 
 __all__ = ["evaluate", "package_versions"]

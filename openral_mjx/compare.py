@@ -166,8 +166,7 @@ class CompareArgs:
     unpaired: bool = False
     """Compare as independent samples even when the reports share seeds."""
     test: str = "auto"
-    """Unpaired test: auto (Fisher's exact when an expected count is below 5, else the
-    two-proportion z test), two-proportion-z or fisher-exact."""
+    """Unpaired test: auto, two-proportion-z or fisher-exact (auto: Fisher if a count < 5)."""
 
 
 def run(args: CompareArgs) -> int:

@@ -47,8 +47,7 @@ class EvalArgs:
     n_episodes: int | None = None
     """Total episodes (seeds); default n_envs. Runs in chunks of n_envs."""
     target_halfwidth: float | None = None
-    """Sequential: run chunks of n_envs seeds until the 95% interval's half-width is at most
-    this (e.g. 0.01); the report's interval is exact under this stopping rule."""
+    """Sequential: run chunks of n_envs seeds until the 95% interval's half-width is <= this."""
     max_episodes: int | None = None
     """Cap on a sequential run's episodes (default: enough for any success rate)."""
     max_steps: int | None = None

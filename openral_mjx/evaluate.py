@@ -45,9 +45,10 @@ def device_description(scene: Scene) -> str:
     return f"{devices[0].platform}: {devices[0].device_kind} x{len(devices)}"
 
 
-def significant(values: np.ndarray, digits: int) -> list[float]:
-    """Round to `digits` significant digits (float32 carries ~7): compact, honest JSON."""
-    return [float(f"{v:.{digits}g}") for v in np.asarray(values, np.float64).tolist()]
+def float32_values(values: np.ndarray) -> list[float]:
+    """float32 values as the shortest decimals that read back to the same float32 (the JSON
+    stays compact and loses nothing)."""
+    return [float(str(v)) for v in np.asarray(values, np.float32)]
 
 
 def episode_results(
@@ -61,8 +62,8 @@ def episode_results(
     budget_ms = 1000 * control_dt
     chunk_ms = [round(1000 * s / timing.scan_steps, 4) for s in timing.chunk_s]
     max_ms = max(chunk_ms)
-    factors = {k: significant(v, 6) for k, v in arrays["factors"].items()}
-    rewards = significant(arrays["total_reward"], 7)
+    factors = {k: float32_values(v) for k, v in arrays["factors"].items()}
+    rewards = float32_values(arrays["total_reward"])
     steps = arrays["steps"].tolist()
     success = arrays["success"].tolist()
     diverged = arrays["diverged"].tolist()

@@ -2,10 +2,13 @@
 
 import json
 
+import jax.numpy as jnp
+import numpy as np
 import pytest
 
 from openral_mjx.errors import ConfigError
 from openral_mjx.evaluate import evaluate
+from openral_mjx.rollout import make_factor_fn
 from openral_mjx.schema import SCHEMA_VERSION, EvalReport, load_report, save_report
 
 
@@ -51,6 +54,14 @@ def test_breakdown_is_built_from_the_episodes_factors(report):
         values = [e.metadata["factors"][name] for e in report.episodes]
         assert sum(r.n for r in rows) == 6 and rows[0].low == min(values)
         assert rows[-1].high == max(values) and all(r.successes == 0 for r in rows)
+
+
+def test_episode_values_are_lossless(report, push_c):
+    """Factors and rewards read back to the runner's float32 values, bit for bit."""
+    factors = make_factor_fn(push_c)(jnp.arange(6, dtype=jnp.int32))
+    for name, values in factors.items():
+        stored = np.array([e.metadata["factors"][name] for e in report.episodes], np.float32)
+        np.testing.assert_array_equal(stored, values, err_msg=name)
 
 
 def test_one_line_per_episode(report, tmp_path):

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import dataclasses
 import datetime as dt
-import functools
 import importlib.metadata
 import platform
 from collections.abc import Callable, Mapping
@@ -18,10 +17,10 @@ from openral_mjx.errors import ConfigError
 from openral_mjx.options import to_dict
 from openral_mjx.physics import PhysicsSettings
 from openral_mjx.policies import make_policy
-from openral_mjx.rollout import RunTiming, check_counts, run_seeds
+from openral_mjx.rollout import FACTOR_PREFIX, RunTiming, check_counts, run_seeds
 from openral_mjx.scenes import Scene, make_scene
 from openral_mjx.schema import EpisodeResult, EvalReport, SequentialInfo, TaskRow
-from openral_mjx.sequential import RULE, SequentialDesign
+from openral_mjx.sequential import RULE, SequentialDesign, sufficient_episodes
 from openral_mjx.stats import wilson_interval
 
 _PACKAGES = ("openral_mjx", "jax", "jaxlib", "mujoco", "mujoco-mjx", "flax", "numpy")
@@ -62,7 +61,11 @@ def episode_results(
     budget_ms = 1000 * control_dt
     chunk_ms = [round(1000 * s / timing.scan_steps, 4) for s in timing.chunk_s]
     max_ms = max(chunk_ms)
-    factors = {k: float32_values(v) for k, v in arrays["factors"].items()}
+    factors = {
+        k.removeprefix(FACTOR_PREFIX): float32_values(v)
+        for k, v in arrays.items()
+        if k.startswith(FACTOR_PREFIX)
+    }
     rewards = float32_values(arrays["total_reward"])
     steps = arrays["steps"].tolist()
     success = arrays["success"].tolist()
@@ -118,9 +121,9 @@ def evaluate(
     `openral_mjx.sequential`). Raises `ConfigError` for unknown names, bad options and
     non-positive counts.
     """
-    design = _design(n_envs, n_episodes, target_halfwidth, max_episodes)
-    if design is not None:
-        n_episodes = design.max_episodes
+    rule = _sequential_rule(n_envs, n_episodes, target_halfwidth, max_episodes)
+    if rule is not None:
+        n_episodes = rule.max_episodes
     n_episodes = n_envs if n_episodes is None else n_episodes
     check_counts(n_envs, n_episodes, 1 if max_steps is None else max_steps)
     if seed < 0:
@@ -146,7 +149,7 @@ def evaluate(
         n_envs=n_envs,
         max_steps=steps,
         on_chunk=on_chunk,
-        until=None if design is None else functools.partial(_stops, design),
+        until=rule,
     )
     n_episodes = len(arrays["success"])
     seeds = seeds[:n_episodes]
@@ -161,7 +164,8 @@ def evaluate(
     successes = int(arrays["success"].sum())
     low, high = wilson_interval(successes, n_episodes)
     sequential = None
-    if design is not None:
+    if rule is not None:
+        design = rule.design
         look = design.looks.index(n_episodes)
         low, high = design.interval(look, successes)
         sequential = SequentialInfo(
@@ -173,7 +177,8 @@ def evaluate(
             halfwidth=(high - low) / 2,
             rule=RULE,
         )
-    factors = {k: [e.metadata["factors"][k] for e in episodes] for k in arrays["factors"]}
+    names = episodes[0].metadata["factors"] if episodes else {}
+    factors = {k: [e.metadata["factors"][k] for e in episodes] for k in names}
     simulated = len(timing.chunk_s) * timing.n_envs * timing.scan_steps
     return EvalReport(
         scene=scene.name,
@@ -191,7 +196,7 @@ def evaluate(
         ci_low=low,
         ci_high=high,
         confidence=0.95,
-        ci_method="wilson" if design is None else "sequential-exact",
+        ci_method="wilson" if rule is None else "sequential-exact",
         diverged=int(arrays["diverged"].sum()),
         per_task=[TaskRow(scene.task, n_episodes, successes, successes / n_episodes, low, high)],
         breakdown=breakdown(factors, arrays["success"], factor_bins),
@@ -209,16 +214,35 @@ def evaluate(
     )
 
 
-def _stops(design: SequentialDesign, arrays: Mapping[str, Any]) -> bool:
-    """The sequential rule after a chunk: the look is the number of episodes run so far."""
-    look = design.looks.index(len(arrays["success"]))
-    return design.stops(look, int(arrays["success"].sum()))
+class SequentialRule:
+    """The runner's `until` for a sequential run: stop once the design says so.
+
+    The design's looks fall after each of the runner's chunks. The runner fixes the chunk
+    size (devices, memory) before any episode runs, and the first look reveals it, so the
+    design is built then: it still depends on no outcome.
+    """
+
+    def __init__(self, halfwidth: float, max_episodes: int) -> None:
+        self.halfwidth, self.max_episodes = halfwidth, max_episodes
+        self._design: SequentialDesign | None = None
+
+    @property
+    def design(self) -> SequentialDesign:
+        if self._design is None:
+            raise RuntimeError("the sequential design is fixed at the first look")
+        return self._design
+
+    def __call__(self, arrays: Mapping[str, Any]) -> bool:
+        n = len(arrays["success"])
+        if self._design is None:
+            self._design = SequentialDesign.in_chunks(n, self.halfwidth, self.max_episodes)
+        return self._design.stops(self._design.looks.index(n), int(arrays["success"].sum()))
 
 
-def _design(
+def _sequential_rule(
     n_envs: int, n_episodes: int | None, target: float | None, max_episodes: int | None
-) -> SequentialDesign | None:
-    """The sequential design for `target_halfwidth`, or None for a fixed episode count."""
+) -> SequentialRule | None:
+    """The stopping rule for `target_halfwidth`, or None for a fixed episode count."""
     if target is None:
         if max_episodes is not None:
             raise ConfigError(
@@ -231,8 +255,12 @@ def _design(
             "n_episodes and target_halfwidth exclude each other: a sequential run decides "
             "how many episodes it needs (cap it with max_episodes)"
         )
+    if not 0 < target < 0.5:
+        raise ConfigError(f"target_halfwidth must lie in (0, 0.5), got {target}")
+    if max_episodes is not None and max_episodes < 1:
+        raise ConfigError(f"max_episodes must be a positive integer, got {max_episodes}")
     check_counts(n_envs, 1, 1)
-    return SequentialDesign.in_chunks(n_envs, target, max_episodes)
+    return SequentialRule(target, max_episodes or sufficient_episodes(target))
 
 
 __all__ = ["evaluate", "package_versions"]

@@ -187,6 +187,7 @@ class _Layout:
 
 
 _FACTOR_FNS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+FACTOR_PREFIX = "factor/"  # run_seeds' key for an episode factor's values
 
 
 def make_factor_fn(
@@ -263,8 +264,8 @@ def run_seeds(
 ) -> tuple[dict[str, Any], RunTiming]:
     """Roll out every seed in chunks of `n_envs`; return per-seed numpy arrays and timings.
 
-    The arrays are the `EpisodeArrays` fields by name and `factors`, a dict of arrays by the
-    scene's factor names (see `make_factor_fn`; empty when the scene declares none).
+    The arrays are the `EpisodeArrays` fields by name and, per factor the scene declares (see
+    `make_factor_fn`), its values under `FACTOR_PREFIX + name`.
 
     The loop runs on the physics backend's devices (the host CPU for `c`, so a GPU machine
     does not bounce every control step between device and host; every GPU for `mjx`/`warp`).
@@ -329,7 +330,7 @@ def run_seeds(
         chunk_s.append(time.perf_counter() - t)
         acc, actions = out if record_actions else (out, None)
         row = {f.name: np.asarray(getattr(acc, f.name)) for f in dataclasses.fields(acc)}
-        row["factors"] = {k: np.asarray(v) for k, v in factors.items()}
+        row.update({FACTOR_PREFIX + k: np.asarray(v) for k, v in factors.items()})
         if actions is not None:
             row["actions"] = np.swapaxes(np.asarray(actions), 0, 1)
         outs.append(row)
@@ -337,7 +338,7 @@ def run_seeds(
         if on_chunk is not None:
             on_chunk(done, len(seeds))
         if until is not None or c == n_chunks - 1:
-            merged = jax.tree.map(lambda *xs, n=done: np.concatenate(xs)[:n], *outs)
+            merged = {k: np.concatenate([o[k] for o in outs])[:done] for k in outs[0]}
             if until is not None and until(merged):
                 break
     timing = RunTiming(

@@ -27,7 +27,6 @@ from __future__ import annotations
 
 import dataclasses
 import itertools
-import math
 from typing import Any
 
 import numpy as np
@@ -65,6 +64,17 @@ def _bounds(n: int, halfwidth: float, confidence: float, final: bool) -> tuple[i
         k = (lo + hi) // 2
         lo, hi = (lo, k) if _halfwidth(k, n, confidence) <= halfwidth else (k + 1, hi)
     return n - lo, lo
+
+
+def sufficient_episodes(halfwidth: float, confidence: float = 0.95) -> int:
+    """Fewest episodes at which every outcome meets the target (the Clopper-Pearson half-width
+    is largest at n/2 successes): the default cap, which a run never reaches unmet."""
+    n = episodes_for_halfwidth(halfwidth, 0.5, confidence, "clopper-pearson")
+    while _halfwidth(n // 2, n, confidence) > halfwidth:
+        n += 1
+    while n > 1 and _halfwidth((n - 1) // 2, n - 1, confidence) <= halfwidth:
+        n -= 1
+    return n
 
 
 @dataclasses.dataclass(frozen=True)
@@ -105,17 +115,14 @@ class SequentialDesign:
         confidence: float = 0.95,
     ) -> SequentialDesign:
         """A look after every `chunk` episodes, up to `max_episodes` (the last chunk may be
-        partial). The default cap is the first multiple of `chunk` at which every outcome
-        stops (the worst case, rate 1/2), so by default the cap never ends a run early."""
+        partial). The default cap is `sufficient_episodes`, at which every outcome meets the
+        target, so by default the cap never ends a run before the target."""
         if chunk < 1:
             raise ConfigError(f"n_envs must be a positive integer, got {chunk}")
         if not 0 < halfwidth < 0.5:
             raise ConfigError(f"target_halfwidth must lie in (0, 0.5), got {halfwidth}")
         if max_episodes is None:
-            worst = episodes_for_halfwidth(halfwidth, 0.5, confidence, "clopper-pearson")
-            max_episodes = chunk * math.ceil(worst / chunk)
-            while _halfwidth(max_episodes // 2, max_episodes, confidence) > halfwidth:
-                max_episodes += chunk
+            max_episodes = sufficient_episodes(halfwidth, confidence)
         if max_episodes < 1:
             raise ConfigError(f"max_episodes must be a positive integer, got {max_episodes}")
         looks = (*range(chunk, max_episodes, chunk), max_episodes)
@@ -205,4 +212,4 @@ class SequentialDesign:
         return bound(0), bound(1)
 
 
-__all__ = ["RULE", "SequentialDesign"]
+__all__ = ["RULE", "SequentialDesign", "sufficient_episodes"]

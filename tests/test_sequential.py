@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from openral_mjx.errors import ConfigError
-from openral_mjx.sequential import SequentialDesign
+from openral_mjx.sequential import SequentialDesign, sufficient_episodes
 from openral_mjx.stats import clopper_pearson_interval, wilson_interval
 
 
@@ -36,12 +36,12 @@ def test_stop_rule_is_its_definition():
         np.testing.assert_array_equal(
             design.stops(j, k), met if j < len(design.looks) - 1 else True
         )
-    # Default cap: the first multiple of the chunk at which every outcome meets the target.
+    # Default cap: the fewest episodes at which every outcome meets the target (a partial
+    # last chunk), whatever the chunk size.
     last = design.max_episodes
-    assert last % 13 == 0 and all(
-        design.meets_target(len(design.looks) - 1, k) for k in range(last)
-    )
-    low, high = clopper_pearson_interval((last - 13) // 2, last - 13)
+    assert last == sufficient_episodes(0.07) == SequentialDesign.in_chunks(50, 0.07).max_episodes
+    assert all(design.meets_target(len(design.looks) - 1, k) for k in range(last + 1))
+    low, high = clopper_pearson_interval((last - 1) // 2, last - 1)
     assert (high - low) / 2 > 0.07
 
 
@@ -129,3 +129,14 @@ def test_sequential_interval_agrees_with_fixed_n_far_from_the_boundary():
         design.interval(look, k), clopper_pearson_interval(k, 4096), atol=1e-8
     )
     assert wilson_interval(k, 4096)[1] - wilson_interval(k, 4096)[0] < 2 * 0.01
+
+
+def test_rule_takes_its_looks_from_the_runners_chunks():
+    """The runner may run fewer envs than asked (memory) or more (a multiple of the devices):
+    the design is fixed at the first look, from the chunk that actually ran."""
+    from openral_mjx.evaluate import SequentialRule
+
+    rule = SequentialRule(0.1, 100)
+    assert not rule({"success": np.zeros(30, bool) | (np.arange(30) % 2 == 0)})
+    assert rule.design.looks == (30, 60, 90, 100)
+    assert rule({"success": np.zeros(60, bool)})  # 0 of 60: the half-width is 0.03

@@ -13,7 +13,9 @@ from pathlib import Path
 import tyro
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
+from openral_mjx.breakdown import format_breakdown
 from openral_mjx.cli_common import command_line, guarded, stderr
+from openral_mjx.compare import compare_reports, format_comparison
 from openral_mjx.compile_cache import enable_compilation_cache
 from openral_mjx.errors import ConfigError
 from openral_mjx.evaluate import evaluate
@@ -22,7 +24,7 @@ from openral_mjx.physics import BACKEND_NAMES, resolve_backend_name
 from openral_mjx.policies import POLICIES
 from openral_mjx.robots import ROBOTS
 from openral_mjx.scenes import SCENES
-from openral_mjx.schema import save_report
+from openral_mjx.schema import EvalReport, load_report, save_report
 
 
 @dataclasses.dataclass
@@ -44,6 +46,10 @@ class EvalArgs:
     """Envs rolled out in parallel (one seed each)."""
     n_episodes: int | None = None
     """Total episodes (seeds); default n_envs. Runs in chunks of n_envs."""
+    target_halfwidth: float | None = None
+    """Sequential: run chunks of n_envs seeds until the 95% interval's half-width is <= this."""
+    max_episodes: int | None = None
+    """Cap on a sequential run's episodes (default: enough for any success rate)."""
     max_steps: int | None = None
     """Control steps per episode (default: the scene's)."""
     seed: int = 0
@@ -59,6 +65,12 @@ class EvalArgs:
     diverged."""
     out: Path | None = None
     """Report path (default: results/SCENE_POLICY_TIMESTAMP.json)."""
+    factor_bins: int = 5
+    """Equal-count bins per episode factor in the report's success breakdown."""
+    breakdown: bool = True
+    """Print the success breakdown by episode factor."""
+    compare_with: Path | None = None
+    """A report of the same scene to compare this run with (paired by seed where shared)."""
     compile_cache: bool = True
     """Use JAX's persistent compilation cache (~/.cache/openral_mjx/jax)."""
     list: bool = False
@@ -108,12 +120,15 @@ def _reproduce(args: EvalArgs, backend: str, out: Path) -> str:
     ]
     for flag, value in (
         ("--n-episodes", args.n_episodes),
+        ("--target-halfwidth", args.target_halfwidth),
+        ("--max-episodes", args.max_episodes),
         ("--max-steps", args.max_steps),
         ("--robot", args.robot),
         ("--robot-mjcf", args.robot_mjcf),
         ("--config", args.config),
         ("--threads", args.threads),
         ("--contacts-per-env", args.contacts_per_env),
+        ("--factor-bins", args.factor_bins if args.factor_bins != 5 else None),
     ):
         if value is not None:
             argv += [flag, str(value)]
@@ -134,6 +149,14 @@ def run(args: EvalArgs) -> int:
     out = args.out or Path("results") / f"{args.scene}_{args.policy.replace(':', '-')}_{stamp}.json"
     if out.exists() and out.is_dir():
         raise ConfigError(f"--out {str(out)!r} is a directory; give a file path")
+    baseline = None
+    if args.compare_with is not None:
+        baseline = load_report(args.compare_with)
+        if baseline.scene != args.scene:
+            raise ConfigError(
+                f"reports are not comparable: scene {baseline.scene!r} ({args.compare_with}) "
+                f"vs {args.scene!r}"
+            )
     if args.compile_cache:
         enable_compilation_cache()
 
@@ -155,6 +178,9 @@ def run(args: EvalArgs) -> int:
             args.policy,
             n_envs=args.n_envs,
             n_episodes=args.n_episodes,
+            target_halfwidth=args.target_halfwidth,
+            max_episodes=args.max_episodes,
+            factor_bins=args.factor_bins,
             seed=args.seed,
             max_steps=args.max_steps,
             backend=backend,
@@ -172,8 +198,31 @@ def run(args: EvalArgs) -> int:
             "in device memory",
             file=sys.stderr,
         )
+    if report.sequential is not None:
+        print(sequential_summary(report))
+    if args.breakdown and report.breakdown:
+        print(format_breakdown(report.breakdown, report.confidence))
+    if baseline is not None:
+        rc = compare_reports(baseline, report)
+        print(format_comparison(rc, baseline, report, (str(args.compare_with), str(out))))
     print(f"report: {out}")
     return 0
+
+
+def sequential_summary(report: EvalReport) -> str:
+    """One line on how a sequential run stopped."""
+    s = report.sequential
+    assert s is not None
+    why = (
+        f"half-width {s.halfwidth:.4f} (target {s.target_halfwidth:g})"
+        if s.stopped == "target"
+        else f"reached --max-episodes before the target {s.target_halfwidth:g}: half-width "
+        f"{s.halfwidth:.4f}"
+    )
+    return (
+        f"sequential: stopped after {s.looks} chunk(s) of {s.chunk:,}, {report.n_episodes:,} "
+        f"of at most {s.max_episodes:,} episodes; {why}; interval exact under this stopping rule"
+    )
 
 
 def main() -> None:

@@ -13,13 +13,15 @@ import jax
 import numpy as np
 
 import openral_mjx
+from openral_mjx.breakdown import breakdown
 from openral_mjx.errors import ConfigError
 from openral_mjx.options import to_dict
 from openral_mjx.physics import PhysicsSettings
 from openral_mjx.policies import make_policy
-from openral_mjx.rollout import RunTiming, check_counts, run_seeds
+from openral_mjx.rollout import FACTOR_PREFIX, RunTiming, check_counts, run_seeds
 from openral_mjx.scenes import Scene, make_scene
-from openral_mjx.schema import EpisodeResult, EvalReport, TaskRow
+from openral_mjx.schema import EpisodeResult, EvalReport, SequentialInfo, TaskRow
+from openral_mjx.sequential import RULE, SequentialDesign, sufficient_episodes
 from openral_mjx.stats import wilson_interval
 
 _PACKAGES = ("jax", "jaxlib", "mujoco", "mujoco-mjx", "flax", "numpy")
@@ -44,8 +46,14 @@ def device_description(scene: Scene) -> str:
     return f"{devices[0].platform}: {devices[0].device_kind} x{len(devices)}"
 
 
+def float32_values(values: np.ndarray) -> list[float]:
+    """float32 values as the shortest decimals that read back to the same float32 (the JSON
+    stays compact and loses nothing)."""
+    return [float(str(v)) for v in np.asarray(values, np.float32)]
+
+
 def episode_results(
-    arrays: Mapping[str, np.ndarray],
+    arrays: Mapping[str, Any],
     seeds: np.ndarray,
     timing: RunTiming,
     control_dt: float,
@@ -53,26 +61,36 @@ def episode_results(
 ) -> list[EpisodeResult]:
     """Turn the runner's per-env arrays into `EpisodeResult`s (latency from chunk timings)."""
     budget_ms = 1000 * control_dt
-    chunk_ms = [1000 * s / timing.scan_steps for s in timing.chunk_s]
+    chunk_ms = [round(1000 * s / timing.scan_steps, 4) for s in timing.chunk_s]
     max_ms = max(chunk_ms)
+    factors = {
+        k.removeprefix(FACTOR_PREFIX): float32_values(v)
+        for k, v in arrays.items()
+        if k.startswith(FACTOR_PREFIX)
+    }
+    rewards = float32_values(arrays["total_reward"])
+    steps = arrays["steps"].tolist()
+    success = arrays["success"].tolist()
+    diverged = arrays["diverged"].tolist()
+    first = arrays["first_success_step"].tolist()
     results = []
-    for i, seed in enumerate(seeds):
+    for i, seed in enumerate(seeds.tolist()):
         mean_ms = chunk_ms[i // timing.n_envs]
-        steps = int(arrays["steps"][i])
         results.append(
             EpisodeResult(
-                success=bool(arrays["success"][i]),
-                steps=steps,
-                total_reward=float(arrays["total_reward"][i]),
+                success=success[i],
+                steps=steps[i],
+                total_reward=rewards[i],
                 mean_step_latency_ms=mean_ms,
                 max_step_latency_ms=max_ms,
                 latency_budget_ms=budget_ms,
-                budget_violations=steps if mean_ms > budget_ms else 0,
+                budget_violations=steps[i] if mean_ms > budget_ms else 0,
                 metadata={
                     **metadata,
-                    "seed": int(seed),
-                    "diverged": bool(arrays["diverged"][i]),
-                    "first_success_step": int(arrays["first_success_step"][i]),
+                    "seed": seed,
+                    "diverged": diverged[i],
+                    "first_success_step": first[i],
+                    "factors": {k: v[i] for k, v in factors.items()},
                 },
             )
         )
@@ -85,6 +103,9 @@ def evaluate(
     *,
     n_envs: int = 1024,
     n_episodes: int | None = None,
+    target_halfwidth: float | None = None,
+    max_episodes: int | None = None,
+    factor_bins: int = 5,
     seed: int = 0,
     max_steps: int | None = None,
     backend: str = "auto",
@@ -96,12 +117,21 @@ def evaluate(
 ) -> EvalReport:
     """Evaluate `policy` on seeds `seed .. seed + n_episodes - 1` and return the report.
 
-    Raises `ConfigError` for unknown names, bad options and non-positive counts.
+    With `target_halfwidth`, run sequentially instead: chunks of `n_envs` seeds until the
+    success-rate interval's half-width is at most the target, or `max_episodes` (default: the
+    worst case, rate 1/2); the report's interval is then exact for that stopping rule (see
+    `openral_mjx.sequential`). Raises `ConfigError` for unknown names, bad options and
+    non-positive counts.
     """
+    rule = _sequential_rule(n_envs, n_episodes, target_halfwidth, max_episodes)
+    if rule is not None:
+        n_episodes = rule.max_episodes
     n_episodes = n_envs if n_episodes is None else n_episodes
     check_counts(n_envs, n_episodes, 1 if max_steps is None else max_steps)
     if seed < 0:
         raise ConfigError(f"seed must be >= 0, got {seed}")
+    if factor_bins < 1:
+        raise ConfigError(f"factor_bins must be a positive integer, got {factor_bins}")
     if isinstance(scene, str):
         settings = PhysicsSettings(threads=threads, batch_size=n_envs)
         if contacts_per_env is not None:
@@ -114,8 +144,17 @@ def evaluate(
         jax.random.PRNGKey(seed), jax.ShapeDtypeStruct((scene.observation_size,), np.float32)
     )
     arrays, timing = run_seeds(
-        scene, pol, params, seeds=seeds, n_envs=n_envs, max_steps=steps, on_chunk=on_chunk
+        scene,
+        pol,
+        params,
+        seeds=seeds,
+        n_envs=n_envs,
+        max_steps=steps,
+        on_chunk=on_chunk,
+        until=rule,
     )
+    n_episodes = len(arrays["success"])
+    seeds = seeds[:n_episodes]
     meta = {
         "scene": scene.name,
         "task": scene.task,
@@ -126,6 +165,22 @@ def evaluate(
     episodes = episode_results(arrays, seeds, timing, scene.control_dt, meta)
     successes = int(arrays["success"].sum())
     low, high = wilson_interval(successes, n_episodes)
+    sequential = None
+    if rule is not None:
+        design = rule.design
+        look = design.looks.index(n_episodes)
+        low, high = design.interval(look, successes)
+        sequential = SequentialInfo(
+            target_halfwidth=design.halfwidth,
+            max_episodes=design.max_episodes,
+            chunk=timing.n_envs,
+            looks=look + 1,
+            stopped="target" if design.meets_target(look, successes) else "max_episodes",
+            halfwidth=(high - low) / 2,
+            rule=RULE,
+        )
+    names = episodes[0].metadata["factors"] if episodes else {}
+    factors = {k: [e.metadata["factors"][k] for e in episodes] for k in names}
     simulated = len(timing.chunk_s) * timing.n_envs * timing.scan_steps
     return EvalReport(
         scene=scene.name,
@@ -143,9 +198,10 @@ def evaluate(
         ci_low=low,
         ci_high=high,
         confidence=0.95,
-        ci_method="wilson",
+        ci_method="wilson" if rule is None else "sequential-exact",
         diverged=int(arrays["diverged"].sum()),
         per_task=[TaskRow(scene.task, n_episodes, successes, successes / n_episodes, low, high)],
+        breakdown=breakdown(factors, arrays["success"], factor_bins),
         env_steps_per_s=simulated / timing.run_s,
         episodes_per_s=n_episodes / timing.run_s,
         compile_s=timing.compile_s,
@@ -156,7 +212,57 @@ def evaluate(
         command=command,
         created_at=dt.datetime.now(dt.UTC).isoformat(timespec="seconds"),
         episodes=episodes,
+        sequential=sequential,
     )
+
+
+class SequentialRule:
+    """The runner's `until` for a sequential run: stop once the design says so.
+
+    The design's looks fall after each of the runner's chunks. The runner fixes the chunk
+    size (devices, memory) before any episode runs, and the first look reveals it, so the
+    design is built then: it still depends on no outcome.
+    """
+
+    def __init__(self, halfwidth: float, max_episodes: int) -> None:
+        self.halfwidth, self.max_episodes = halfwidth, max_episodes
+        self._design: SequentialDesign | None = None
+
+    @property
+    def design(self) -> SequentialDesign:
+        if self._design is None:
+            raise RuntimeError("the sequential design is fixed at the first look")
+        return self._design
+
+    def __call__(self, arrays: Mapping[str, Any]) -> bool:
+        n = len(arrays["success"])
+        if self._design is None:
+            self._design = SequentialDesign.in_chunks(n, self.halfwidth, self.max_episodes)
+        return self._design.stops(self._design.looks.index(n), int(arrays["success"].sum()))
+
+
+def _sequential_rule(
+    n_envs: int, n_episodes: int | None, target: float | None, max_episodes: int | None
+) -> SequentialRule | None:
+    """The stopping rule for `target_halfwidth`, or None for a fixed episode count."""
+    if target is None:
+        if max_episodes is not None:
+            raise ConfigError(
+                "max_episodes caps a sequential run: give target_halfwidth too "
+                "(or n_episodes for a fixed count)"
+            )
+        return None
+    if n_episodes is not None:
+        raise ConfigError(
+            "n_episodes and target_halfwidth exclude each other: a sequential run decides "
+            "how many episodes it needs (cap it with max_episodes)"
+        )
+    if not 0 < target < 0.5:
+        raise ConfigError(f"target_halfwidth must lie in (0, 0.5), got {target}")
+    if max_episodes is not None and max_episodes < 1:
+        raise ConfigError(f"max_episodes must be a positive integer, got {max_episodes}")
+    check_counts(n_envs, 1, 1)
+    return SequentialRule(target, max_episodes or sufficient_episodes(target))
 
 
 __all__ = ["evaluate", "package_versions"]

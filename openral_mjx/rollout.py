@@ -6,13 +6,16 @@ ends at success, divergence or the step limit (no auto-reset). More seeds than e
 chunks of `n_envs` that reuse one compiled function (the last chunk is padded with extra seeds
 whose results are dropped). Envs shard over every device the physics backend runs on (a 1-D
 mesh over the env axis, `jax.shard_map`, each device running the same single-device program on
-its slice), and a batch that would not fit in device memory is shrunk before it runs.
+its slice), and a batch that would not fit in device memory is shrunk before it runs. A
+caller's `until` predicate, checked after each chunk, can end the run early (sequential
+estimation).
 """
 
 from __future__ import annotations
 
 import dataclasses
 import time
+import weakref
 from collections.abc import Callable, Sequence
 from typing import Any
 
@@ -58,6 +61,13 @@ class RunTiming:
     bytes_per_device: int | None = None
 
 
+def seed_keys(seeds: jax.Array) -> tuple[jax.Array, jax.Array]:
+    """Seed s -> (reset key, policy key stream): the two halves of `PRNGKey(s)` split."""
+    keys = jax.vmap(jax.random.PRNGKey)(seeds)
+    split = jax.vmap(lambda k: jax.random.split(k, 2))(keys)
+    return split[:, 0], split[:, 1]
+
+
 def make_episode_fn(
     scene: Scene, policy: Policy, max_steps: int, *, record_actions: bool = False
 ) -> Callable[[Any, jax.Array], EpisodeArrays | tuple[EpisodeArrays, jax.Array]]:
@@ -68,9 +78,7 @@ def make_episode_fn(
     """
 
     def episode(params: Any, seeds: jax.Array) -> EpisodeArrays:
-        keys = jax.vmap(jax.random.PRNGKey)(seeds)
-        split = jax.vmap(lambda k: jax.random.split(k, 2))(keys)
-        reset_keys, policy_keys = split[:, 0], split[:, 1]
+        reset_keys, policy_keys = seed_keys(seeds)
         state = jax.vmap(scene.reset)(reset_keys)
         _, pstate0 = policy.init(
             jax.random.PRNGKey(0), jax.ShapeDtypeStruct(state.obs.shape[1:], state.obs.dtype)
@@ -149,6 +157,14 @@ class _Layout:
             return multihost_utils.process_allgather(tree, tiled=True)
         return jax.device_get(tree)
 
+    def shard(self, fn: Callable) -> Callable:
+        """`fn` over a batch of envs, jitted and `shard_map`ped over the devices."""
+        return jax.jit(
+            jax.shard_map(
+                fn, mesh=self.mesh, in_specs=P("env"), out_specs=P("env"), check_vma=False
+            )
+        )
+
     def wrap(self, episode: Callable, record_actions: bool) -> Callable:
         """The jitted episode function, `shard_map`ped so every device runs the same program on
         its slice of envs. One device goes through the same path, so a run on D devices is the
@@ -165,6 +181,40 @@ class _Layout:
                 check_vma=False,
             )
         )
+
+
+_FACTOR_FNS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+FACTOR_PREFIX = "factor/"  # run_seeds' key for an episode factor's values
+
+
+def make_factor_fn(
+    scene: Scene, devices: Sequence[jax.Device] | None = None
+) -> Callable[[jax.Array], dict[str, jax.Array]] | None:
+    """`seeds[n] -> {factor: values[n]}`: the scene's `episode_factors` of each seed's reset
+    state, sharded like the episodes; None when the scene declares no factors. Cached per
+    scene and devices, so the compiled functions are reused.
+
+    The factors see the reset state without the backend's raw data (they read quantities,
+    `info`, `obs`, `metrics`, as all task logic does). Two jitted functions, reset then
+    factors, not one: inside one XLA fusion the reset's arithmetic is recomputed and contracted
+    (a * b + c into an FMA) differently at different batch sizes, which changed factors in the
+    last bit with the batch size; reading the materialised reset state keeps them bit-identical.
+    """
+    layout = _Layout(tuple(devices or scene.backend.devices()))
+    cache = _FACTOR_FNS.setdefault(scene, {})
+    if layout.devices not in cache:
+        state = jax.eval_shape(scene.reset, jax.random.PRNGKey(0))
+        fn = None
+        if jax.eval_shape(scene.episode_factors, state):
+
+            def reset(seeds: jax.Array) -> Any:
+                s = jax.vmap(scene.reset)(seed_keys(seeds)[0])
+                return s.replace(physics=s.physics.replace(data=None))
+
+            reset_fn, factor_fn = layout.shard(reset), layout.shard(jax.vmap(scene.episode_factors))
+            fn = lambda seeds: factor_fn(reset_fn(seeds))  # noqa: E731
+        cache[layout.devices] = fn
+    return cache[layout.devices]
 
 
 def _peak_bytes(compiled: Any) -> int | None:
@@ -207,8 +257,12 @@ def run_seeds(
     record_actions: bool = False,
     memory_fraction: float = 0.85,
     devices: Sequence[jax.Device] | None = None,
-) -> tuple[dict[str, np.ndarray], RunTiming]:
+    until: Callable[[dict[str, Any]], bool] | None = None,
+) -> tuple[dict[str, Any], RunTiming]:
     """Roll out every seed in chunks of `n_envs`; return per-seed numpy arrays and timings.
+
+    The arrays are the `EpisodeArrays` fields by name and, per factor the scene declares (see
+    `make_factor_fn`), its values under `FACTOR_PREFIX + name`.
 
     The loop runs on the physics backend's devices (the host CPU for `c`, so a GPU machine
     does not bounce every control step between device and host; every GPU for `mjx`/`warp`).
@@ -220,6 +274,9 @@ def run_seeds(
     `devices` overrides the backend's choice (e.g. a subset of the GPUs).
 
     `on_chunk(done_episodes, total_episodes)` is called once compiled and after each chunk.
+    `until(arrays_so_far)`, if given, is called after each chunk; when it returns True no
+    further chunk runs and only the seeds run so far are returned. The chunk size is fixed
+    before any episode runs (it depends on the devices and memory, never on outcomes).
     """
     seeds = np.asarray(seeds, dtype=np.int64)
     check_counts(n_envs, len(seeds), max_steps)
@@ -248,28 +305,39 @@ def run_seeds(
         compiled = fn.lower(params, layout.put_envs(np.zeros(per_device * n_dev, np.int32)))
         compiled = compiled.compile()
         need = _peak_bytes(compiled)
-    compile_s = time.perf_counter() - t0
     n_envs = per_device * n_dev
+    factor_fn = make_factor_fn(scene, layout.devices)
+    if factor_fn is not None:  # compile it too, before timing the chunks
+        jax.block_until_ready(factor_fn(layout.put_envs(np.zeros(n_envs, np.int32))))
+    compile_s = time.perf_counter() - t0
     n_chunks = -(-len(seeds) // n_envs)
     padded = np.concatenate([seeds, seeds[-1] + 1 + np.arange(n_chunks * n_envs - len(seeds))])
     padded = np.minimum(padded, 2**31 - 1).astype(np.int32)
     if on_chunk is not None:
         on_chunk(0, len(seeds))
 
-    outs: list[dict[str, np.ndarray]] = []
+    outs: list[dict[str, Any]] = []
     chunk_s: list[float] = []
+    merged: dict[str, Any] = {}
     for c in range(n_chunks):
         t = time.perf_counter()
-        out = layout.get(compiled(params, layout.put_envs(padded[c * n_envs : (c + 1) * n_envs])))
+        chunk = layout.put_envs(padded[c * n_envs : (c + 1) * n_envs])
+        out = layout.get(compiled(params, chunk))
+        factors = {} if factor_fn is None else layout.get(factor_fn(chunk))
         chunk_s.append(time.perf_counter() - t)
         acc, actions = out if record_actions else (out, None)
         row = {f.name: np.asarray(getattr(acc, f.name)) for f in dataclasses.fields(acc)}
+        row.update({FACTOR_PREFIX + k: np.asarray(v) for k, v in factors.items()})
         if actions is not None:
             row["actions"] = np.swapaxes(np.asarray(actions), 0, 1)
         outs.append(row)
+        done = min((c + 1) * n_envs, len(seeds))
         if on_chunk is not None:
-            on_chunk(min((c + 1) * n_envs, len(seeds)), len(seeds))
-    merged = {k: np.concatenate([o[k] for o in outs])[: len(seeds)] for k in outs[0]}
+            on_chunk(done, len(seeds))
+        if until is not None or c == n_chunks - 1:
+            merged = {k: np.concatenate([o[k] for o in outs])[:done] for k in outs[0]}
+            if until is not None and until(merged):
+                break
     timing = RunTiming(
         compile_s=compile_s,
         run_s=float(sum(chunk_s)),

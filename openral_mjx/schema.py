@@ -16,7 +16,7 @@ from typing import Any
 
 from openral_mjx.errors import ConfigError
 
-SCHEMA_VERSION = "openral_mjx.eval_report/1"
+SCHEMA_VERSION = "openral_mjx.eval_report/2"
 
 
 @dataclasses.dataclass
@@ -28,7 +28,8 @@ class EpisodeResult:
     and `max_step_latency_ms` the largest such chunk mean over the run (per-step timing inside
     a fused scan is not observable). `latency_budget_ms` is the scene's control period;
     `budget_violations` counts this episode's steps taken while the batch step was slower.
-    `metadata` carries seed, scene, task, robot, policy, backend, diverged, first_success_step.
+    `metadata` carries seed, scene, task, robot, policy, backend, diverged, first_success_step
+    and `factors` (the scene's randomised factors of this episode, name -> value).
     """
 
     success: bool
@@ -67,8 +68,47 @@ class TaskRow:
 
 
 @dataclasses.dataclass
+class BreakdownRow:
+    """Success within one bin of one episode factor: episodes with `low <= value < high`
+    (`<= high` in a factor's last bin), with a Wilson interval at the report's confidence."""
+
+    factor: str
+    low: float
+    high: float
+    n: int
+    successes: int
+    rate: float
+    ci_low: float
+    ci_high: float
+
+
+@dataclasses.dataclass
+class SequentialInfo:
+    """How a sequential run (`eval --target-halfwidth`) stopped, and the rule it followed.
+
+    Looks came after every `chunk` episodes up to `max_episodes`; the run stopped after
+    `looks` of them because the target was met (`stopped` = "target") or at the cap
+    ("max_episodes"). `halfwidth` is that of the reported interval, which is exact for this
+    design (`rule`), not a fixed-n interval.
+    """
+
+    target_halfwidth: float
+    max_episodes: int
+    chunk: int
+    looks: int
+    stopped: str
+    halfwidth: float
+    rule: str
+
+
+@dataclasses.dataclass
 class EvalReport:
-    """Aggregate of one evaluation run; `episodes` holds every `EpisodeResult`."""
+    """Aggregate of one evaluation run; `episodes` holds every `EpisodeResult`.
+
+    `ci_method` is "wilson" for a fixed number of episodes and "sequential-exact" for a
+    sequential run (see `sequential`). `breakdown` holds success per bin of each episode
+    factor the scene declares (equal-count bins).
+    """
 
     scene: str
     task: str
@@ -88,6 +128,7 @@ class EvalReport:
     ci_method: str
     diverged: int
     per_task: list[TaskRow]
+    breakdown: list[BreakdownRow]
     env_steps_per_s: float
     episodes_per_s: float
     compile_s: float
@@ -98,6 +139,7 @@ class EvalReport:
     command: str
     created_at: str
     episodes: list[EpisodeResult]
+    sequential: SequentialInfo | None = None
     schema_version: str = SCHEMA_VERSION
 
     def summary(self) -> str:
@@ -112,48 +154,95 @@ class EvalReport:
         )
 
     def to_dict(self) -> dict[str, Any]:
-        return dataclasses.asdict(self)
+        """JSON-ready dict (episodes converted shallowly: `asdict` deep-copies, slow at 100k)."""
+        out: dict[str, Any] = {}
+        for f in dataclasses.fields(self):
+            value = getattr(self, f.name)
+            out[f.name] = dataclasses.asdict(value) if dataclasses.is_dataclass(value) else value
+        out["per_task"] = [dataclasses.asdict(r) for r in self.per_task]
+        out["breakdown"] = [dataclasses.asdict(r) for r in self.breakdown]
+        names = [f.name for f in dataclasses.fields(EpisodeResult)]
+        out["episodes"] = [{k: getattr(e, k) for k in names} for e in self.episodes]
+        return out
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> EvalReport:
-        version = data.get("schema_version")
+        """Strict: another schema version, a missing or an unknown field is a `ConfigError`."""
+        version = data.get("schema_version") if isinstance(data, dict) else None
         if version != SCHEMA_VERSION:
-            raise ConfigError(
-                f"report schema {version!r} is not supported; valid: {SCHEMA_VERSION}"
-            )
-        fields = {f.name for f in dataclasses.fields(cls)}
-        unknown = sorted(set(data) - fields)
-        if unknown:
-            raise ConfigError(f"report has unknown fields {unknown}")
+            raise ConfigError(f"schema {version!r} is not supported; valid: {SCHEMA_VERSION}")
         data = dict(data)
-        data["per_task"] = [TaskRow(**r) for r in data["per_task"]]
-        data["episodes"] = [EpisodeResult(**e) for e in data["episodes"]]
-        return cls(**data)
+        for name, row in (("per_task", TaskRow), ("breakdown", BreakdownRow)):
+            if name in data:
+                data[name] = [_build(row, r, name) for r in data[name]]
+        if data.get("sequential") is not None:
+            data["sequential"] = _build(SequentialInfo, data["sequential"], "sequential")
+        if "episodes" in data:
+            data["episodes"] = [_build(EpisodeResult, e, "episodes") for e in data["episodes"]]
+        return _build(cls, data, "report")
 
 
-def write_json_atomic(path: Path, data: Any) -> None:
-    """Write JSON to `path` via a temporary file and `os.replace`: never half-written."""
+def _build(cls: type, data: Any, where: str) -> Any:
+    """`cls(**data)`, or a `ConfigError` naming unknown and missing fields."""
+    if not isinstance(data, dict):
+        raise ConfigError(f"{where}: expected an object, got {type(data).__name__}")
+    fields = dataclasses.fields(cls)
+    unknown = sorted(set(data) - {f.name for f in fields})
+    missing = [
+        f.name
+        for f in fields
+        if f.name not in data
+        and f.default is dataclasses.MISSING
+        and f.default_factory is dataclasses.MISSING
+    ]
+    if unknown or missing:
+        raise ConfigError(f"{where}: unknown fields {unknown}, missing fields {missing}")
+    return cls(**data)
+
+
+def write_text_atomic(path: Path, text: str) -> None:
+    """Write `text` to `path` via a temporary file and `os.replace`: never half-written."""
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     try:
         with os.fdopen(fd, "w") as f:
-            json.dump(data, f, indent=1, allow_nan=False)
-            f.write("\n")
+            f.write(text)
         os.replace(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
 
 
+def write_json_atomic(path: Path, data: Any) -> None:
+    """Write indented JSON to `path` atomically (NaN and infinity are errors)."""
+    write_text_atomic(path, json.dumps(data, indent=1, allow_nan=False) + "\n")
+
+
+def report_json(report: EvalReport) -> str:
+    """The report as indented JSON with one compact line per episode, so that a report of
+    100,000 episodes stays a file of tens of MB that a line-oriented tool can still read."""
+    data = report.to_dict()
+    episodes = data.pop("episodes")
+    head = json.dumps(data, indent=1, allow_nan=False)
+    rows = ",\n  ".join(json.dumps(e, separators=(",", ":"), allow_nan=False) for e in episodes)
+    body = f"\n  {rows}\n " if rows else ""
+    return f'{head[:-2]},\n "episodes": [{body}]\n}}\n'
+
+
 def save_report(report: EvalReport, path: Path) -> None:
-    write_json_atomic(path, report.to_dict())
+    write_text_atomic(path, report_json(report))
 
 
 def load_report(path: Path) -> EvalReport:
+    """Read a report back; every problem (missing file, bad JSON, another schema version,
+    unknown or missing fields) is a `ConfigError` that names the file."""
     if not path.is_file():
         raise ConfigError(f"report {str(path)!r} does not exist")
     try:
         data = json.loads(path.read_text())
     except json.JSONDecodeError as e:
         raise ConfigError(f"report {str(path)!r} is not valid JSON: {e}") from None
-    return EvalReport.from_dict(data)
+    try:
+        return EvalReport.from_dict(data)
+    except ConfigError as e:
+        raise ConfigError(f"report {str(path)!r}: {e}") from None

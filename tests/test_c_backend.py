@@ -18,6 +18,7 @@ def test_same_episodes_whatever_the_thread_count(push_c):
         run_seeds(s, make_policy("scripted", s), None, seeds=seeds, n_envs=6, max_steps=60)[0]
         for s in (push_c, one_thread)
     ]
+    assert "factor/goal_distance" in runs[0]  # factors come along and must agree too
     for k in runs[0]:
         np.testing.assert_array_equal(runs[0][k], runs[1][k], err_msg=k)
 

@@ -7,6 +7,8 @@ import sys
 import pytest
 
 from openral_mjx import eval as eval_cli
+from openral_mjx.schema import load_report
+from openral_mjx.stats import clopper_pearson_interval
 
 
 def run_cli(monkeypatch, capsys, *argv):
@@ -40,6 +42,71 @@ def test_small_eval_writes_report(monkeypatch, capsys, tmp_path):
     assert "--policy zero" in rep["command"] and "--backend c" in rep["command"]
 
 
+def test_sequential_run_stops_at_the_target(monkeypatch, capsys, tmp_path):
+    """Zero policy, 0 successes: the Clopper-Pearson half-width is 0.30 after 4 episodes and
+    0.18 after 8, so a 0.2 target stops after the second chunk."""
+    out_path = tmp_path / "seq.json"
+    argv = ["--n-envs", "4", "--max-steps", "3", "--policy", "zero", "--threads", "1"]
+    code, out, _ = run_cli(
+        monkeypatch,
+        capsys,
+        *argv,
+        "--target-halfwidth",
+        "0.2",
+        "--max-episodes",
+        "12",
+        "--out",
+        str(out_path),
+        "--no-breakdown",
+    )
+    assert code == 0
+    assert "(sequential-exact 95%), 0/8 episodes" in out
+    assert "sequential: stopped after 2 chunk(s) of 4, 8 of at most 12 episodes" in out
+    assert "success by episode factor" not in out
+    rep = load_report(out_path)
+    assert rep.ci_method == "sequential-exact" and rep.n_episodes == len(rep.episodes) == 8
+    assert rep.sequential.stopped == "target" and rep.sequential.looks == 2
+    assert rep.ci_high == pytest.approx(clopper_pearson_interval(0, 8)[1])  # lowest outcome
+    assert "--target-halfwidth 0.2 --max-episodes 12" in rep.command
+    # The cap ends a run whose target is out of reach; the report says so.
+    code, out, _ = run_cli(
+        monkeypatch,
+        capsys,
+        *argv,
+        "--target-halfwidth",
+        "0.05",
+        "--max-episodes",
+        "8",
+        "--out",
+        str(out_path),
+    )
+    rep = load_report(out_path)
+    assert code == 0 and rep.n_episodes == 8 and rep.sequential.stopped == "max_episodes"
+    assert "reached --max-episodes before the target 0.05" in out
+    assert "success by episode factor (equal-count bins, 95% Wilson):" in out
+
+
+def test_eval_compare_with(monkeypatch, capsys, tmp_path):
+    argv = ["--n-envs", "4", "--max-steps", "3", "--threads", "1", "--no-breakdown"]
+    a, b = tmp_path / "a.json", tmp_path / "b.json"
+    assert run_cli(monkeypatch, capsys, *argv, "--policy", "zero", "--out", str(a))[0] == 0
+    code, out, _ = run_cli(
+        monkeypatch, capsys, *argv, "--policy", "random", "--out", str(b), "--compare-with", str(a)
+    )
+    assert code == 0
+    assert f"A: {a}  tabletop_push/zero on c: 0/4" in out
+    assert f"B: {b}  tabletop_push/random on c: 0/4" in out
+    assert "paired on 4 common seeds: both succeed 0, only A 0, only B 0, neither 4" in out
+    assert out.strip().endswith(f"report: {b}")
+
+
+def test_compare_with_another_scene_or_schema(monkeypatch, capsys, tmp_path):
+    bad = tmp_path / "old.json"
+    bad.write_text(json.dumps({"schema_version": "openral_mjx.eval_report/1"}))
+    code, _, err = run_cli(monkeypatch, capsys, "--compare-with", str(bad), "--max-steps", "2")
+    assert code == 2 and "schema 'openral_mjx.eval_report/1' is not supported" in err
+
+
 def test_list(monkeypatch, capsys):
     code, out, _ = run_cli(monkeypatch, capsys, "--list")
     assert code == 0 and "tabletop_push" in out and "scripted" in out and "so101" in out
@@ -61,6 +128,20 @@ def test_list(monkeypatch, capsys):
         (["--robot-mjcf", "missing.xml"], "robot MJCF 'missing.xml' does not exist"),
         (["--threads", "0"], "threads must be >= 1, got 0"),
         (["--contacts-per-env", "0"], "contacts_per_env must be >= 1, got 0"),
+        (["--target-halfwidth", "0"], "target_halfwidth must lie in (0, 0.5), got 0.0"),
+        (["--target-halfwidth", "0.5"], "target_halfwidth must lie in (0, 0.5), got 0.5"),
+        (["--target-halfwidth", "nan"], "target_halfwidth must lie in (0, 0.5), got nan"),
+        (["--max-episodes", "100"], "max_episodes caps a sequential run: give target_halfwidth"),
+        (
+            ["--n-episodes", "10", "--target-halfwidth", "0.1"],
+            "n_episodes and target_halfwidth exclude each other",
+        ),
+        (
+            ["--target-halfwidth", "0.1", "--max-episodes", "0"],
+            "max_episodes must be a positive integer, got 0",
+        ),
+        (["--factor-bins", "0"], "factor_bins must be a positive integer, got 0"),
+        (["--compare-with", "missing.json"], "report 'missing.json' does not exist"),
     ],
 )
 def test_bad_input(monkeypatch, capsys, tmp_path, argv, needle):

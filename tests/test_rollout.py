@@ -13,6 +13,13 @@ from openral_mjx.rollout import run_seeds
 STEPS = 120
 
 
+def assert_same(a: dict, b: dict, index_a=slice(None), index_b=slice(None)) -> None:
+    """Every per-seed array (factors included) equal, bit for bit, at the given seeds."""
+    assert sorted(a) == sorted(b) and any(k.startswith("factor/") for k in a)
+    for k in a:
+        np.testing.assert_array_equal(a[k][index_a], b[k][index_b], err_msg=k)
+
+
 @pytest.fixture(scope="module")
 def scripted_runs(push_c):
     pol = make_policy("scripted", push_c)
@@ -30,21 +37,52 @@ def scripted_runs(push_c):
 def test_seed_gives_same_episode_at_any_batch_size(scripted_runs):
     one, eight, _, _, _ = scripted_runs
     for arrays, i in zip(one, (0, 5), strict=True):
-        for k in eight:
-            np.testing.assert_array_equal(arrays[k][0], eight[k][i], err_msg=k)
+        assert_same(arrays, eight, 0, i)
 
 
 def test_second_run_is_identical(scripted_runs):
     _, eight, again, _, _ = scripted_runs
-    for k in eight:
-        np.testing.assert_array_equal(eight[k], again[k], err_msg=k)
+    assert_same(eight, again)
 
 
 def test_chunks_reuse_one_function_and_match(scripted_runs):
     _, eight, _, chunked, timing = scripted_runs
     assert len(timing.chunk_s) == 3 and timing.n_envs == 3  # 8 seeds -> 3 + 3 + 2 (padded)
-    for k in eight:
-        np.testing.assert_array_equal(eight[k], chunked[k], err_msg=k)
+    assert_same(eight, chunked)
+
+
+def test_until_ends_the_run_after_a_chunk(push_c, scripted_runs):
+    _, eight, _, _, _ = scripted_runs
+    pol = make_policy("scripted", push_c)
+    seen = []
+
+    def until(arrays):
+        seen.append(len(arrays["success"]))
+        return len(arrays["success"]) >= 6
+
+    arrays, timing = run_seeds(
+        push_c, pol, None, seeds=np.arange(8), n_envs=3, max_steps=STEPS, until=until
+    )
+    assert seen == [3, 6] and len(timing.chunk_s) == 2
+    assert_same(arrays, eight, slice(None), slice(0, 6))
+
+
+def test_factors_describe_each_seeds_reset(push_c, scripted_runs):
+    """The runner's per-seed factors against numpy (float64) from the sampled episode."""
+    _, eight, _, _, _ = scripted_runs
+    keys = jax.vmap(lambda s: jax.random.split(jax.random.PRNGKey(s))[0])(jnp.arange(8))
+    cube, goal = (np.asarray(x, np.float64) for x in jax.vmap(push_c.sample_episode)(keys))
+    to_goal = goal - cube[:, :2]
+    offset = np.mod(np.arctan2(to_goal[:, 1], to_goal[:, 0]) - cube[:, 2], np.pi / 2)
+    expected = {
+        "cube_x": cube[:, 0],
+        "cube_y": cube[:, 1],
+        "goal_distance": np.linalg.norm(to_goal, axis=1),
+        "push_face_angle": np.minimum(offset, np.pi / 2 - offset),
+    }
+    assert sorted(k for k in eight if k.startswith("factor/")) == [f"factor/{k}" for k in expected]
+    for name, values in expected.items():
+        np.testing.assert_allclose(eight[f"factor/{name}"], values, atol=2e-6, err_msg=name)
 
 
 def test_episode_bookkeeping(scripted_runs):

@@ -1,11 +1,14 @@
-"""Report JSON: round trip through a saved file, version check, atomic writes."""
+"""Report JSON: round trip through a saved file, strict loading, compact layout, atomic writes."""
 
 import json
 
+import jax.numpy as jnp
+import numpy as np
 import pytest
 
 from openral_mjx.errors import ConfigError
 from openral_mjx.evaluate import evaluate
+from openral_mjx.rollout import make_factor_fn
 from openral_mjx.schema import SCHEMA_VERSION, EvalReport, load_report, save_report
 
 
@@ -40,15 +43,54 @@ def test_report_fields(report):
     assert e.metadata["scene"] == "tabletop_push" and e.metadata["seed"] == 0
     assert report.versions["mujoco"] and report.per_task[0].n_episodes == 6
     assert "seed 0: failure in 3 steps" in e.summary()
+    assert report.sequential is None and report.ci_method == "wilson"
 
 
-def test_wrong_version_is_rejected(report, tmp_path):
+def test_breakdown_is_built_from_the_episodes_factors(report):
+    factors = report.episodes[0].metadata["factors"]
+    assert sorted(factors) == ["cube_x", "cube_y", "goal_distance", "push_face_angle"]
+    for name in factors:
+        rows = [r for r in report.breakdown if r.factor == name]
+        values = [e.metadata["factors"][name] for e in report.episodes]
+        assert sum(r.n for r in rows) == 6 and rows[0].low == min(values)
+        assert rows[-1].high == max(values) and all(r.successes == 0 for r in rows)
+
+
+def test_episode_values_are_lossless(report, push_c):
+    """Factors and rewards read back to the runner's float32 values, bit for bit."""
+    factors = make_factor_fn(push_c)(jnp.arange(6, dtype=jnp.int32))
+    for name, values in factors.items():
+        stored = np.array([e.metadata["factors"][name] for e in report.episodes], np.float32)
+        np.testing.assert_array_equal(stored, values, err_msg=name)
+
+
+def test_one_line_per_episode(report, tmp_path):
+    path = tmp_path / "r.json"
+    save_report(report, path)
+    lines = path.read_text().splitlines()
+    episode_lines = [ln for ln in lines if ln.lstrip().startswith('{"success":')]
+    assert len(episode_lines) == 6
+    assert json.loads(episode_lines[0].rstrip(","))["metadata"]["seed"] == 0
+
+
+@pytest.mark.parametrize(
+    "change,needle",
+    [
+        (lambda d: d.update(schema_version="openral_mjx.eval_report/1"), "not supported"),
+        (lambda d: d.update(extra=1), "unknown fields ['extra']"),
+        (lambda d: d.pop("breakdown"), "missing fields ['breakdown']"),
+        (lambda d: d["episodes"][0].pop("steps"), "episodes: unknown fields [], missing"),
+        (lambda d: d["breakdown"][0].update(bin=3), "breakdown: unknown fields ['bin']"),
+    ],
+)
+def test_loading_is_strict(report, tmp_path, change, needle):
     data = report.to_dict()
-    data["schema_version"] = "openral_mjx.eval_report/0"
-    path = tmp_path / "old.json"
+    change(data)
+    path = tmp_path / "bad.json"
     path.write_text(json.dumps(data))
-    with pytest.raises(ConfigError, match="not supported"):
+    with pytest.raises(ConfigError, match=r"^report '.*bad\.json': ") as exc:
         load_report(path)
+    assert needle in str(exc.value)
 
 
 def test_failed_write_leaves_nothing(report, tmp_path):

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from openral_mjx.errors import ConfigError
+from openral_mjx.rollout import make_factor_fn
 from openral_mjx.scenes import make_scene
 
 
@@ -35,6 +36,20 @@ def test_reset_samples_within_ranges(push_c):
     assert (goal[:, 0] <= o.goal_region_x[1] + 1e-6).all()
     # The goal never starts under the cube (so doing nothing cannot succeed).
     assert (np.linalg.norm(goal - cube[:, :2], axis=1) > o.goal_radius).mean() > 0.99
+
+
+def test_factors_are_bit_identical_at_any_batch_size(push_c):
+    """A seed's factors do not depend on the batch it runs in (see `make_factor_fn`)."""
+    factor_fn = make_factor_fn(push_c)
+    seeds = jnp.arange(21, dtype=jnp.int32)
+    whole = factor_fn(seeds)
+    for size in (1, 7):  # the scalar code path, and vectors with a remainder
+        for start in range(0, 21, size):
+            part = factor_fn(seeds[start : start + size])
+            for name, values in whole.items():
+                np.testing.assert_array_equal(part[name], values[start : start + size], name)
+    angle = np.asarray(whole["push_face_angle"])
+    assert angle.min() >= 0 and angle.max() <= np.pi / 4 + 1e-6
 
 
 def _placed(scene, cube_xyz, goal_xy, cube_vel=(0.0, 0.0, 0.0)):

@@ -53,6 +53,16 @@ class Scene(abc.ABC):
     def step(self, state: State, action: jax.Array) -> State:
         """Apply one control action for one control period."""
 
+    def episode_factors(self, state: State) -> dict[str, jax.Array]:
+        """The episode's randomised factors, read from its reset state: name -> scalar.
+
+        Reports break the success rate down by these (e.g. initial cube-to-goal distance), so
+        a user sees where a policy fails. Evaluated once per env inside the jitted episode;
+        pure JAX, one env. Default: none.
+        """
+        del state
+        return {}
+
     @property
     @abc.abstractmethod
     def max_steps(self) -> int:

@@ -16,6 +16,11 @@ bring the tool to the cube, the cube to the goal.
 Success: the cube centre within `goal_radius` of the goal (in the table plane) while the cube
 rests on the table: centre height within `rest_height_tol` of half an edge above the top face,
 and speed below `rest_speed`. The episode ends on success (or divergence, or at max steps).
+
+Episode factors (for the report's breakdown), from the reset state: `goal_distance` (cube centre
+to goal in the table plane, m), `cube_x`, `cube_y` (initial cube position, m), and
+`push_face_angle` (rad, in [0, pi/4]): the angle between the cube->goal direction and the
+nearest cube face normal; 0 is a push square onto a face, pi/4 onto an edge.
 """
 
 from __future__ import annotations
@@ -337,6 +342,20 @@ class TabletopPush(Scene):
             info=info,
         )
         return self._evaluate(state, physics)
+
+    def episode_factors(self, state: State) -> dict[str, jax.Array]:
+        q = state.physics.quantities
+        cube_xy, quat = q.body_pos[0][:2], q.body_quat[0]
+        to_goal = state.info["goal_xy"] - cube_xy
+        yaw = 2 * jnp.arctan2(quat[3], quat[0])  # the cube is only ever yawed at reset
+        quarter = jnp.pi / 2
+        offset = jnp.mod(jnp.arctan2(to_goal[1], to_goal[0]) - yaw, quarter)
+        return {
+            "goal_distance": jnp.hypot(to_goal[0], to_goal[1]),
+            "cube_x": cube_xy[0],
+            "cube_y": cube_xy[1],
+            "push_face_angle": jnp.minimum(offset, quarter - offset),
+        }
 
     def step(self, state: State, action: jax.Array) -> State:
         low, high = self.action_bounds()

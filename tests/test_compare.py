@@ -1,0 +1,126 @@
+"""The compare CLI: paired by seed, unpaired, partial overlap, and every non-comparable pair of
+reports -> one line, exit 2."""
+
+import dataclasses
+import json
+import sys
+
+import numpy as np
+import pytest
+
+from openral_mjx import compare as compare_cli
+from openral_mjx.evaluate import evaluate
+from openral_mjx.schema import EvalReport, save_report
+from openral_mjx.stats import paired_comparison, unpaired_comparison
+
+
+@pytest.fixture(scope="module")
+def base() -> EvalReport:
+    return evaluate("tabletop_push", "zero", n_envs=8, max_steps=2, backend="c", threads=1)
+
+
+def variant(report: EvalReport, outcomes, seeds=None, **fields) -> EvalReport:
+    """`report` with the given per-episode successes (and seeds), totals kept consistent."""
+    seeds = list(range(len(outcomes))) if seeds is None else list(seeds)
+    template = report.episodes[0]
+    episodes = [
+        dataclasses.replace(
+            template, success=bool(ok), metadata={**template.metadata, "seed": int(s)}
+        )
+        for ok, s in zip(outcomes, seeds, strict=True)
+    ]
+    k, n = int(sum(outcomes)), len(outcomes)
+    return dataclasses.replace(
+        report, episodes=episodes, successes=k, n_episodes=n, success_rate=k / n, **fields
+    )
+
+
+def run_compare(monkeypatch, capsys, tmp_path, a: EvalReport, b: EvalReport, *flags):
+    paths = []
+    for name, r in (("a.json", a), ("b.json", b)):
+        save_report(r, tmp_path / name)
+        paths.append(str(tmp_path / name))
+    monkeypatch.setattr(sys, "argv", ["openral_mjx.compare", *paths, *flags])
+    with pytest.raises(SystemExit) as exc:
+        compare_cli.main()
+    out, err = capsys.readouterr()
+    return exc.value.code, out, err
+
+
+A = [1, 0, 0, 1, 0, 0, 1, 0, 0, 0]
+B = [1, 1, 1, 1, 0, 1, 1, 1, 0, 1]
+
+
+def test_paired_on_common_seeds(monkeypatch, capsys, tmp_path, base):
+    a = variant(base, A)
+    b = variant(base, B, policy="scripted")
+    code, out, _ = run_compare(monkeypatch, capsys, tmp_path, a, b)
+    assert code == 0
+    ref = paired_comparison(np.array(A, bool), np.array(B, bool))
+    assert "paired on 10 common seeds: both succeed 3, only A 0, only B 5, neither 2" in out
+    assert f"B - A = +{100 * ref.difference:.1f} points" in out
+    assert f"[{100 * ref.ci_low:+.1f}, {100 * ref.ci_high:+.1f}]" in out
+    assert f"exact McNemar p = {ref.p_value:.2g}" in out  # 2 / 2**5 = 0.0625
+    assert "no difference detected at the 5% level" in out
+
+
+def test_pairing_follows_seeds_not_order(monkeypatch, capsys, tmp_path, base):
+    a = variant(base, A)
+    order = np.random.default_rng(0).permutation(10)
+    b = variant(base, [B[i] for i in order], seeds=order)
+    _, out, _ = run_compare(monkeypatch, capsys, tmp_path, a, b)
+    assert "both succeed 3, only A 0, only B 5, neither 2" in out
+
+
+def test_partial_overlap_and_forced_unpaired(monkeypatch, capsys, tmp_path, base):
+    a = variant(base, A)
+    b = variant(base, B, seeds=range(5, 15))
+    _, out, _ = run_compare(monkeypatch, capsys, tmp_path, a, b)
+    assert "paired on 5 common seeds" in out
+    assert "note: 5 episodes of A and 5 of B have no partner and are left out" in out
+    _, out, _ = run_compare(monkeypatch, capsys, tmp_path, a, b, "--unpaired")
+    ref = unpaired_comparison(3, 10, 8, 10)
+    assert "unpaired: 10 episodes of A, 10 of B" in out and ref.test == "fisher-exact"
+    assert f"Fisher's exact p = {ref.p_value:.2g}" in out
+    assert "share 5 seeds: the unpaired test ignores their correlation" in out
+
+
+def test_disjoint_seeds_are_unpaired(monkeypatch, capsys, tmp_path, base):
+    a = variant(base, [1] * 40 + [0] * 60, seeds=range(100))
+    b = variant(base, [1] * 60 + [0] * 40, seeds=range(100, 200), max_steps=5)
+    _, out, _ = run_compare(monkeypatch, capsys, tmp_path, a, b)
+    ref = unpaired_comparison(40, 100, 60, 100)
+    assert "unpaired: 100 episodes of A, 100 of B" in out
+    assert f"two-proportion z p = {ref.p_value:.2g}" in out
+    assert "B's success rate is higher than A's at the 5% level" in out
+    assert "note: the runs differ in max_steps" in out
+
+
+@pytest.mark.parametrize(
+    "edit,flags,needle",
+    [
+        ({"scene": "so101_box"}, [], "reports are not comparable: scene 'tabletop_push' (A)"),
+        ({"task": "other"}, [], "reports are not comparable: task"),
+        ({"schema_version": "openral_mjx.eval_report/1"}, [], "schema 'openral_mjx.eval_report/1'"),
+        ({}, ["--test", "t"], "unknown unpaired test 't'; valid: auto"),
+        ({}, ["--confidence", "95"], "confidence must lie in (0, 1), got 95.0"),
+    ],
+)
+def test_not_comparable_is_exit_2(monkeypatch, capsys, tmp_path, base, edit, flags, needle):
+    b = dataclasses.replace(base, **{k: v for k, v in edit.items() if k != "schema_version"})
+    if "schema_version" in edit:
+        b = dataclasses.replace(b, schema_version=edit["schema_version"])
+    code, out, err = run_compare(monkeypatch, capsys, tmp_path, base, b, *flags)
+    assert code == 2 and out == ""
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: ") and needle in lines[0], err
+
+
+def test_missing_and_broken_files(monkeypatch, capsys, tmp_path, base):
+    save_report(base, tmp_path / "a.json")
+    (tmp_path / "b.json").write_text(json.dumps({"schema_version": "x"}))
+    for b in ("missing.json", str(tmp_path / "b.json")):
+        monkeypatch.setattr(sys, "argv", ["c", str(tmp_path / "a.json"), b])
+        with pytest.raises(SystemExit) as exc:
+            compare_cli.main()
+        assert exc.value.code == 2 and capsys.readouterr().err.startswith("error: report ")

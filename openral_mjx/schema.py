@@ -200,13 +200,22 @@ def _build(cls: type, data: Any, where: str) -> Any:
     return cls(**data)
 
 
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
 def write_text_atomic(path: Path, text: str) -> None:
-    """Write `text` to `path` via a temporary file and `os.replace`: never half-written."""
+    """Write `text` to `path` via a temporary file and `os.replace`: never half-written.
+
+    The file gets the permissions a plain `open(path, "w")` would (mkstemp's are 0600)."""
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     try:
         with os.fdopen(fd, "w") as f:
             f.write(text)
+        os.chmod(tmp, 0o666 & ~_umask())
         os.replace(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)

@@ -101,3 +101,16 @@ def test_failed_write_leaves_nothing(report, tmp_path):
     with pytest.raises(ValueError):
         write_json_atomic(tmp_path / "x.json", bad)
     assert list(tmp_path.iterdir()) == []
+
+
+def test_written_file_has_ordinary_permissions(tmp_path):
+    import os
+    import stat
+
+    from openral_mjx.schema import write_json_atomic
+
+    path = tmp_path / "p.json"
+    write_json_atomic(path, {"a": 1})
+    mask = os.umask(0)
+    os.umask(mask)
+    assert stat.S_IMODE(path.stat().st_mode) == 0o666 & ~mask

@@ -306,6 +306,7 @@ def run_seeds(
         compiled = compiled.compile()
         need = _peak_bytes(compiled)
     n_envs = per_device * n_dev
+    scene.backend.warm_up()
     factor_fn = make_factor_fn(scene, layout.devices)
     if factor_fn is not None:  # compile it too, before timing the chunks
         jax.block_until_ready(factor_fn(layout.put_envs(np.zeros(n_envs, np.int32))))

@@ -105,6 +105,10 @@ class PhysicsBackend(abc.ABC):
     def step(self, state: PhysicsState, ctrl: jax.Array) -> PhysicsState:
         """Hold `ctrl` for `n_substeps` physics steps."""
 
+    def warm_up(self) -> None:  # noqa: B027 - an optional hook, a no-op by default
+        """Build whatever the first step would build lazily (e.g. GPU kernels), so that it is
+        counted as compile time rather than in the first chunk's run time."""
+
     def devices(self) -> list[jax.Device]:
         """The devices the runner shards envs over (default: every device JAX sees)."""
         return list(jax.devices())

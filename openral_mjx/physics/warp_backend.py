@@ -63,6 +63,7 @@ class WarpBackend(MjxBackend):
         )
         self._warn = int(OverflowType.ALL & ~(OverflowType.ITERATIONS | OverflowType.LS_ITERATIONS))
         super().__init__(spec, quantities, n_substeps, settings)
+        self._warm = False
         m, s = self.mj_model, self.settings
         self.naconmax = s.contacts_per_env * s.batch_size
         # Rows per env: a pyramidal friction cone takes 2 (condim - 1) rows per contact (<= 10
@@ -80,6 +81,22 @@ class WarpBackend(MjxBackend):
     def _data_ok(self, d: mjx.Data) -> jax.Array:
         overflow = jnp.bitwise_and(d._impl.overflow, self._fatal)
         return all_finite(d.qpos, d.qvel) & jnp.all(overflow == 0)
+
+    def warm_up(self) -> None:
+        """Warp builds (or loads from its cache) its kernels on the first call: one env, one
+        step. The kernels take the batch size at run time, so this covers any batch."""
+        if self._warm:
+            return
+        import numpy as np
+
+        m = self.mj_model
+        state = jax.jit(jax.vmap(self.init))(
+            jnp.asarray(m.qpos0[None], jnp.float32), jnp.zeros((1, m.nv), jnp.float32)
+        )
+        jax.block_until_ready(
+            jax.jit(jax.vmap(self.step))(state, jnp.asarray(np.zeros((1, m.nu)), jnp.float32))
+        )
+        self._warm = True
 
     def devices(self) -> list[jax.Device]:
         """CUDA GPUs where there are any, else the CPU (Warp's CPU mode, for tests)."""

@@ -70,28 +70,16 @@ def test_c_backend_matches_mj_step(push_c, initial_qpos, reference):
     np.testing.assert_allclose(got, reference, rtol=0, atol=1e-6)
 
 
-def test_mjx_matches_mj_step(push_mjx, initial_qpos, reference):
-    got = _backend_rollout(push_mjx, initial_qpos, _actions(push_mjx))
-    nq = push_mjx.mj_model.nq
-    robot = push_mjx.robot_qpos_adr
-    a = push_mjx.cube_qpos_adr
-    # MJX runs in float32 with the same solver settings (6 Newton iterations). Measured worst
-    # cases over 200 steps: arm joints 2.6e-7 rad, resting-cube position 1.4e-4 m (contact
-    # solver in float32), arm joint speeds 6.8e-6 rad/s at speeds up to 5 rad/s. Bounds
-    # allow ~4x that.
-    np.testing.assert_allclose(got[..., robot], reference[..., robot], atol=1e-6)
-    np.testing.assert_allclose(got[..., a : a + 3], reference[..., a : a + 3], atol=5e-4)
-    np.testing.assert_allclose(got[..., nq + robot], reference[..., nq + robot], atol=3e-5)
-
-
-def test_warp_matches_mj_step(push_warp, initial_qpos, reference):
-    got = _backend_rollout(push_warp, initial_qpos, _actions(push_warp))
-    nq = push_warp.mj_model.nq
-    robot = push_warp.robot_qpos_adr
-    a = push_warp.cube_qpos_adr
-    # MuJoCo-Warp (CPU mode here) in float32, same solver settings. Measured worst cases over
-    # 200 steps: arm joints 2.9e-7 rad, resting-cube position 1.4e-4 m, arm joint speeds
-    # 2.2e-6 rad/s. Same bounds as MJX's JAX implementation.
+@pytest.mark.parametrize("fixture", ["push_mjx", "push_warp"])
+def test_float32_backends_match_mj_step(fixture, request, initial_qpos, reference):
+    """MJX's JAX and MuJoCo-Warp (CPU mode here) implementations run in float32 with the same
+    solver settings (6 Newton iterations). Measured worst cases over 200 steps: arm joints
+    2.6e-7 (JAX) / 2.9e-7 (Warp) rad, resting-cube position 1.4e-4 m (contact solver in
+    float32), arm joint speeds 6.8e-6 / 2.2e-6 rad/s at speeds up to 5 rad/s. The bounds allow
+    ~4x that."""
+    scene = request.getfixturevalue(fixture)
+    got = _backend_rollout(scene, initial_qpos, _actions(scene))
+    nq, robot, a = scene.mj_model.nq, scene.robot_qpos_adr, scene.cube_qpos_adr
     np.testing.assert_allclose(got[..., robot], reference[..., robot], atol=1e-6)
     np.testing.assert_allclose(got[..., a : a + 3], reference[..., a : a + 3], atol=5e-4)
     np.testing.assert_allclose(got[..., nq + robot], reference[..., nq + robot], atol=3e-5)

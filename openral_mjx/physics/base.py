@@ -96,6 +96,10 @@ class PhysicsBackend(abc.ABC):
         self.mj_model = spec.copy().compile()
         self.body_ids = tuple(self.mj_model.body(n).id for n in quantities.bodies)
         self.site_ids = tuple(self.mj_model.site(n).id for n in quantities.sites)
+        self._setup(spec)
+
+    def _setup(self, spec: mujoco.MjSpec) -> None:  # noqa: B027 - optional hook
+        """Backend-specific construction, after the common fields above are set."""
 
     @abc.abstractmethod
     def init(self, qpos: jax.Array, qvel: jax.Array) -> PhysicsState:

@@ -23,7 +23,6 @@ from mujoco import rollout
 
 from openral_mjx.physics.base import (
     PhysicsBackend,
-    PhysicsSettings,
     PhysicsState,
     Quantities,
     QuantitySpec,
@@ -56,16 +55,9 @@ class CBackend(PhysicsBackend):
 
     name = "c"
 
-    def __init__(
-        self,
-        spec: mujoco.MjSpec,
-        quantities: QuantitySpec,
-        n_substeps: int,
-        settings: PhysicsSettings | None = None,
-    ) -> None:
-        super().__init__(spec, quantities, n_substeps, settings)
+    def _setup(self, spec: mujoco.MjSpec) -> None:
         self.threads = self.settings.threads or default_threads()
-        self._model = self._model_with_pose_sensors(spec, quantities)
+        self._model = self._model_with_pose_sensors(spec, self.quantity_spec)
         m = self._model
         self.nq, self.nv, self.nu = m.nq, m.nv, m.nu
         self.nstate = mujoco.mj_stateSize(m, _FULL)

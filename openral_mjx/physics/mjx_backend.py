@@ -16,10 +16,8 @@ with contextlib.redirect_stdout(io.StringIO()):
 
 from openral_mjx.physics.base import (
     PhysicsBackend,
-    PhysicsSettings,
     PhysicsState,
     Quantities,
-    QuantitySpec,
     all_finite,
 )
 
@@ -34,14 +32,7 @@ class MjxBackend(PhysicsBackend):
     name = "mjx"
     impl = "jax"
 
-    def __init__(
-        self,
-        spec: mujoco.MjSpec,
-        quantities: QuantitySpec,
-        n_substeps: int,
-        settings: PhysicsSettings | None = None,
-    ) -> None:
-        super().__init__(spec, quantities, n_substeps, settings)
+    def _setup(self, spec: mujoco.MjSpec) -> None:
         self.mx = self._put_model()
         self._body_ids = jnp.asarray(self.body_ids, dtype=jnp.int32)
         self._site_ids = jnp.asarray(self.site_ids, dtype=jnp.int32)

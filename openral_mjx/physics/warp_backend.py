@@ -18,7 +18,7 @@ import jax.numpy as jnp
 import mujoco
 
 from openral_mjx.errors import ConfigError
-from openral_mjx.physics.base import PhysicsSettings, QuantitySpec, all_finite
+from openral_mjx.physics.base import all_finite
 from openral_mjx.physics.mjx_backend import MjxBackend, mjx
 
 INSTALL_HINT = "pip install 'openral_mjx[warp]' (warp-lang)"
@@ -35,13 +35,7 @@ class WarpBackend(MjxBackend):
     name = "warp"
     impl = "warp"
 
-    def __init__(
-        self,
-        spec: mujoco.MjSpec,
-        quantities: QuantitySpec,
-        n_substeps: int,
-        settings: PhysicsSettings | None = None,
-    ) -> None:
+    def _setup(self, spec: mujoco.MjSpec) -> None:
         if not warp_installed():
             raise ConfigError(f"backend 'warp' needs warp-lang; install it with {INSTALL_HINT}")
         import warp
@@ -62,13 +56,13 @@ class WarpBackend(MjxBackend):
             | OverflowType.EPA_HORIZON
         )
         self._warn = int(OverflowType.ALL & ~(OverflowType.ITERATIONS | OverflowType.LS_ITERATIONS))
-        super().__init__(spec, quantities, n_substeps, settings)
         self._warm = False
         m, s = self.mj_model, self.settings
         self.naconmax = s.contacts_per_env * s.batch_size
         # Rows per env: a pyramidal friction cone takes 2 (condim - 1) rows per contact (<= 10
         # for condim 6), plus one row per dof for joint limits and one for friction loss.
         self.njmax = 10 * s.contacts_per_env + 2 * m.nv + m.neq * 6
+        super()._setup(spec)  # puts the model, which needs the overflow mask above
 
     def _put_model(self) -> mjx.Model:
         mx = mjx.put_model(self.mj_model, impl="warp")

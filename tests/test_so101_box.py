@@ -206,7 +206,7 @@ def test_episode_factors(box_c):
 def test_options_are_validated():
     with pytest.raises(ConfigError, match="hole_diametr"):
         make_scene("so101_box", {"hole_diametr": 0.03}, backend="c")
-    with pytest.raises(ConfigError, match="tube_diameter=0.025 must be < hole_diameter"):
+    with pytest.raises(ConfigError, match=r"tube_diameter=0\.025 must be < hole_diameter"):
         So101BoxOptions(tube_diameter=0.025)
     with pytest.raises(ConfigError, match="block_spawn_x"):
         So101BoxOptions(block_spawn_x=(0.2, 0.1))

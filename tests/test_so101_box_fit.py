@@ -107,7 +107,7 @@ def test_tube_fits_the_hole_with_the_stated_clearance(engine, c_depths, mjx_dept
     depths = c_depths if engine == "c" else mjx_depths
     height = OPTIONS.block_size[2]
     for (offset, angle, fits), depth in zip(CASES, depths, strict=True):
-        case = f"{engine}: offset {offset * 1000:.1f} mm at {angle:.0f} deg, depth {depth * 1000:.2f} mm"
+        case = f"{engine}: {offset * 1000:.1f} mm at {angle:.0f} deg, depth {depth * 1000:.2f} mm"
         if fits:
             # Through the hole onto the floor (soft contact: within 0.1 mm of it).
             assert depth > height - 0.0001, case

@@ -3,21 +3,24 @@
 A state machine on the observation (privileged object poses), with Cartesian targets turned
 into joint targets by one damped least-squares step per control step (as `push_expert`):
 
-0. pre-grasp: the grasp point at grasp height, beside the tube along the jaws' free side (the
-   fingers' width direction), so the open jaws can slide around the tube sideways: a top-down
-   approach would need the finger tips above the 9 cm tube, which the SO-101 cannot reach with
-   its tool vertical.
-1. slide: the grasp point onto the tube's axis.
-2. close: close the jaw for `close_steps` control steps.
-3. lift: the tube's lower end to `carry_clearance` above the block's top face.
-4. carry: the lower end over the hole's axis at that height.
-5. align: hold until the lower end is within `align_tolerance` of the hole's axis.
-6. insert: lower the tube along the hole's axis to the floor.
+0. approach: the grasp point to pre-grasp, jaw shut (an open jaw sweeps through things), tool
+   vertical and the fingers' width direction radial. Pre-grasp is at grasp height beside the
+   tube, towards the pan axis, so that the open jaws can slide around the tube sideways: a
+   top-down approach would need the finger tips above the 9 cm tube, where the SO-101 cannot
+   hold its tool vertical.
+1. open: open the jaw at pre-grasp.
+2. slide: the grasp point onto the tube's axis.
+3. close: close the jaw for `close_steps` control steps.
+4. lift: the tube's lower end to `carry_clearance` above the block's top face.
+5. carry: the lower end over the hole's axis at that height.
+6. align: hold until the lower end is within `align_tolerance` of the hole's axis.
+7. insert: lower the tube along the hole's axis to the floor (slowly, correcting sideways at
+   full speed).
 
-Before the grasp the controlled point is the gripper's `grasp` site and the tool axis is held
-vertical; once the tube is held, the controlled point is the tube's observed lower end and its
-observed axis is held vertical (closed loop on the object, so grasp offsets do not matter).
-If the tube slips out of the grasp on the way, the expert starts over from pre-grasp.
+Before the grasp the controlled point is the gripper's `grasp` site; once the tube is held it
+is the tube's observed lower end, with the tube's observed axis held vertical (closed loop on
+the object, so grasp offsets do not matter). If the tube leaves the grasp on the way, the
+expert starts over.
 """
 
 from __future__ import annotations
@@ -33,11 +36,12 @@ from openral_mjx.policies.base import Policy
 # q -> (site position, site rotation matrix, jacp (3, n), jacr (3, n)), world frame.
 SiteKinematics = Callable[[jax.Array], tuple[jax.Array, jax.Array, jax.Array, jax.Array]]
 
-ABOVE, DESCEND, SLIDE, CLOSE, LIFT, CARRY, ALIGN, INSERT = range(8)
+APPROACH, OPEN, SLIDE, CLOSE, LIFT, CARRY, ALIGN, INSERT = range(8)
 
 
-def at(pos: jax.Array, target: jax.Array, tol: float) -> jax.Array:
-    return fo.norm(pos - target) < tol
+def _limit(v: jax.Array, max_norm: float) -> jax.Array:
+    """`v` scaled down to at most `max_norm` long."""
+    return v * jnp.minimum(1.0, max_norm / (fo.norm(v) + 1e-9))
 
 
 def _quat_axis_z(quat: jax.Array) -> jax.Array:
@@ -59,7 +63,6 @@ def insert_expert(
     block_height: float,
     grasp_height: float = 0.070,
     pre_grasp_offset: float = 0.035,
-    approach_height: float = 0.0,
     gripper_open: float = 1.0,
     gripper_closed: float = -0.17,
     close_steps: int = 15,
@@ -127,18 +130,17 @@ def insert_expert(
 
         # ---- transitions -----------------------------------------------------------------
         pre = grasp_point + side * pre_grasp_offset
-        above = pre + up * approach_height
         tool, y_axis = rot[:, 2], rot[:, 1]
         y_goal = jnp.where(fo.dot(y_axis, side) >= 0, side, -side)
         aligned = (fo.norm(tool - up) < 0.05) & (fo.norm(y_goal - y_axis) < 0.05)
         jaw_open = q[gripper_joint] > 0.9 * gripper_open
         lower_err_xy = fo.norm(lower[:2] - hole_xy)
         carry_z = top_z + carry_clearance
-        at_above = (fo.norm(pos[:2] - above[:2]) < 0.003) & (jnp.abs(pos[2] - above[2]) < 0.005)
+        near_pre = (fo.norm(pos[:2] - pre[:2]) < 0.003) & (jnp.abs(pos[2] - pre[2]) < 0.005)
         steps = [
-            (ABOVE, at_above & aligned),
-            (DESCEND, at(pos, pre, 0.002) & aligned & jaw_open),
-            (SLIDE, at(pos, grasp_point, 0.002)),
+            (APPROACH, near_pre & aligned),
+            (OPEN, (fo.norm(pos - pre) < 0.002) & aligned & jaw_open),
+            (SLIDE, fo.norm(pos - grasp_point) < 0.002),
         ]
         for p, cond in steps:
             phase = jnp.where((phase == p) & cond, p + 1, phase)
@@ -151,7 +153,7 @@ def insert_expert(
         ]
         for p, cond in steps:
             phase = jnp.where((phase == p) & cond, p + 1, phase)
-        phase = jnp.where((phase >= LIFT) & ~held, ABOVE, phase)
+        phase = jnp.where((phase >= LIFT) & ~held, APPROACH, phase)
 
         # ---- targets -----------------------------------------------------------------------
         def over_hole(z):
@@ -160,7 +162,7 @@ def insert_expert(
         # Lift/carry/align/insert move the tube's lower end; before that, the grasp site.
         targets = jnp.stack(
             [
-                above,
+                pre,
                 pre,
                 grasp_point,
                 grasp_point,
@@ -174,30 +176,25 @@ def insert_expert(
         step_limit = jnp.array([max_step_m, fine, fine, fine, fine, fine, fine, ins])[phase]
         carrying = phase >= LIFT
         point = jnp.where(carrying, lower, pos)
-        err = targets[phase] - point
-        err = err * jnp.minimum(1.0, step_limit / (fo.norm(err) + 1e-9))
-        # Inserting, the descent is slow but the lateral correction is not slowed with it.
         raw = targets[phase] - point
-        lateral = raw[:2] * jnp.minimum(1.0, fine_step_m / (fo.norm(raw[:2]) + 1e-9))
+        # Inserting, the descent is slow but the sideways correction is not slowed with it.
         err = jnp.where(
             phase == INSERT,
-            jnp.append(lateral, jnp.clip(raw[2], -insert_step_m, insert_step_m)),
-            err,
+            jnp.append(_limit(raw[:2], fine_step_m), jnp.clip(raw[2], -ins, ins)),
+            _limit(raw, step_limit),
         )
         # Jacobians of the controlled point and axis (a point rigidly attached to the gripper).
         r = point - pos
         cur_axis = jnp.where(carrying, axis, tool)
         jpt = jnp.stack([jp[:, i] + fo.cross(jr[:, i], r) for i in range(n)], 1)
         jax_ = jnp.stack([fo.cross(jr[:, i], cur_axis) for i in range(n)], 1)
-        axis_err = up - cur_axis
-        axis_err = axis_err * jnp.minimum(1.0, max_tilt_step / (fo.norm(axis_err) + 1e-9))
-        # Roll: the grasp site's y axis along the radial line (either sign), horizontal.
+        axis_err = _limit(up - cur_axis, max_tilt_step)
+        # Roll: the grasp site's y axis along the radial line (either sign), horizontal; only
+        # before the grasp (a 5-joint arm cannot also hold the roll while it places the tube's
+        # end and axis).
         jy = jnp.stack([fo.cross(jr[:, i], y_axis) for i in range(n)], 1)
-        # (Only before the grasp: a 5-joint arm cannot also hold the roll while it places the
-        # tube's end and axis.)
-        y_err = jnp.where(phase < CLOSE, y_goal - y_axis, 0.0)
         jy = jnp.where(phase < CLOSE, jy, 0.0)
-        y_err = y_err * jnp.minimum(1.0, max_tilt_step / (fo.norm(y_err) + 1e-9))
+        y_err = _limit(jnp.where(phase < CLOSE, y_goal - y_axis, 0.0), max_tilt_step)
         a = (
             fo.matmul(jpt.T, jpt)
             + orient_weight * (fo.matmul(jax_.T, jax_) + fo.matmul(jy.T, jy))
@@ -208,8 +205,6 @@ def insert_expert(
         )
         dq = jnp.clip(fo.solve_spd(a, b), -max_joint_step, max_joint_step)
         action = (q + dq)[actuator_joint]
-        # The jaw stays shut on the way (an open jaw sweeps through things) and opens once the
-        # gripper hangs vertical beside the tube.
         grip = jnp.array([0.0, gripper_open, gripper_open, *[gripper_closed] * 5])[phase]
         action = action.at[gripper_actuator].set(grip)
         return jnp.clip(action, low, high), (phase, timer)

@@ -85,7 +85,7 @@ from openral_mjx.physics.kinematics import site_kinematics
 from openral_mjx.policies.base import Policy
 from openral_mjx.policies.insert_expert import insert_expert
 from openral_mjx.robots import ROBOTS
-from openral_mjx.scenes.base import Scene, State
+from openral_mjx.scenes.base import Scene, State, actuator_joints, obs_slices
 from openral_mjx.scenes.composition import load_robot, look_at_quat, yaw_quat
 
 Pair = tuple[float, float]
@@ -621,16 +621,7 @@ class So101Box(Scene):
             "block_pos": 3,
             "block_quat": 4,
         }
-        starts = np.cumsum([0, *sizes.values()])
-        self._layout = {k: (int(s), v) for (k, v), s in zip(sizes.items(), starts, strict=False)}
-
-    @property
-    def max_steps(self) -> int:
-        return self.options.max_steps
-
-    @property
-    def action_size(self) -> int:
-        return int(self.mj_model.nu)
+        self._layout = obs_slices(sizes)
 
     @property
     def obs_layout(self) -> dict[str, tuple[int, int]]:
@@ -670,10 +661,8 @@ class So101Box(Scene):
         )
         i = jnp.argmax(ok)
         fallback_block, fallback_tube = o.fallback_layout()
-        block = jnp.where(
-            ok[i], blocks[i], jnp.array([*fallback_block, 0.0]).at[2].set(blocks[0, 2])
-        )
-        tube = jnp.where(ok[i], tubes[i], jnp.array([*fallback_tube, 0.0]).at[2].set(tubes[0, 2]))
+        block = jnp.where(ok[i], blocks[i], jnp.append(jnp.array(fallback_block), blocks[0, 2]))
+        tube = jnp.where(ok[i], tubes[i], jnp.append(jnp.array(fallback_tube), tubes[0, 2]))
         return block, tube
 
     def reset(self, key: jax.Array) -> State:
@@ -800,8 +789,7 @@ class So101Box(Scene):
     def scripted_policy(self) -> Policy:
         """The scene's expert: grasp the tube, carry it over the hole, lower it in."""
         m = self.mj_model
-        joint_index = {int(j): i for i, j in enumerate(self.robot_joint_ids)}
-        actuator_joint = jnp.array([joint_index[int(j)] for j in m.actuator_trnid[:, 0]])
+        actuator_joint = actuator_joints(m, self.robot_joint_ids)
         low, high = self.action_bounds()
         fk = site_kinematics(m, m.site("grasp").id, self.robot_qpos_adr)
         return insert_expert(
@@ -811,7 +799,7 @@ class So101Box(Scene):
             low,
             high,
             gripper_actuator=m.actuator("gripper").id,
-            gripper_joint=joint_index[m.joint("gripper").id],
+            gripper_joint=int(actuator_joint[m.actuator("gripper").id]),
             pan_xy=self._pan_xy(),
             tube_length=self.options.tube_length,
             block_height=self.options.block_size[2],

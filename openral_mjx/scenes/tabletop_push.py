@@ -42,7 +42,7 @@ from openral_mjx.physics.kinematics import site_kinematics
 from openral_mjx.policies.base import Policy
 from openral_mjx.policies.push_expert import push_expert
 from openral_mjx.robots import ROBOTS, RobotSpec, user_robot
-from openral_mjx.scenes.base import Scene, State
+from openral_mjx.scenes.base import Scene, State, actuator_joints, obs_slices
 from openral_mjx.scenes.composition import load_robot, look_at_quat, yaw_quat
 
 Pair = tuple[float, float]
@@ -234,16 +234,7 @@ class TabletopPush(Scene):
             "cube_quat": 4,
             "goal_xy": 2,
         }
-        starts = np.cumsum([0, *sizes.values()])
-        self._layout = {k: (int(s), v) for (k, v), s in zip(sizes.items(), starts, strict=False)}
-
-    @property
-    def max_steps(self) -> int:
-        return self.options.max_steps
-
-    @property
-    def action_size(self) -> int:
-        return int(self.mj_model.nu)
+        self._layout = obs_slices(sizes)
 
     @property
     def obs_layout(self) -> dict[str, tuple[int, int]]:
@@ -374,8 +365,7 @@ class TabletopPush(Scene):
     def scripted_policy(self) -> Policy:
         """The scene's expert: push along the cube->goal line (see `push_expert`)."""
         m = self.mj_model
-        joint_index = {int(j): i for i, j in enumerate(self.robot_joint_ids)}
-        actuator_joint = jnp.array([joint_index[int(j)] for j in m.actuator_trnid[:, 0]])
+        actuator_joint = actuator_joints(m, self.robot_joint_ids)
         low, high = self.action_bounds()
         return push_expert(
             self.obs_layout,

@@ -47,12 +47,13 @@ class BenchArgs:
     """Measure evaluator throughput against the raw physics ceilings."""
 
     scene: str = "tabletop_push"
+    """Scene ID."""
     backend: str = "auto"
     """auto, mjx, warp or c."""
     n: tuple[int, ...] = (1024,)
     """Batch sizes to measure."""
-    max_steps: int = 200
-    """Control steps per rollout."""
+    max_steps: int | None = None
+    """Control steps per rollout (default: the scene's episode length)."""
     c_max_envs: int = 4096
     """Cap on envs for the MuJoCo C reference (its rate does not depend on N past the cores)."""
     threads: int | None = None
@@ -119,13 +120,16 @@ def peak_memory_bytes() -> int | None:
 
 def run(args: BenchArgs) -> int:
     backend = resolve_backend_name(args.backend)
-    if not args.n or min(args.n) < 1 or args.max_steps < 1:
-        raise ConfigError(f"--n values and --max-steps must be positive, got {args.n}")
+    if not args.n or min(args.n) < 1 or (args.max_steps is not None and args.max_steps < 1):
+        raise ConfigError(
+            f"--n values and --max-steps must be positive, got {args.n}, {args.max_steps}"
+        )
     if args.compile_cache:
         enable_compilation_cache()
     threads = args.threads or default_threads()
     settings = PhysicsSettings(threads=threads, batch_size=max(args.n))
     scene = make_scene(args.scene, backend=backend, settings=settings)
+    args = dataclasses.replace(args, max_steps=args.max_steps or scene.max_steps)
     policy = make_policy("scripted", scene)
     c_scene = scene if backend == "c" else make_scene(args.scene, backend="c", settings=settings)
     rows = []
@@ -171,7 +175,16 @@ def run(args: BenchArgs) -> int:
         "created_at": dt.datetime.now(dt.UTC).isoformat(timespec="seconds"),
         "command": command_line(
             "openral_mjx.bench",
-            ["--backend", backend, "--n", *map(str, args.n), "--max-steps", str(args.max_steps)],
+            [
+                "--scene",
+                args.scene,
+                "--backend",
+                backend,
+                "--n",
+                *map(str, args.n),
+                "--max-steps",
+                str(args.max_steps),
+            ],
         ),
     }
     write_json_atomic(args.out, result)

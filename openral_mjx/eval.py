@@ -23,7 +23,7 @@ from openral_mjx.options import load_yaml, parse_overrides
 from openral_mjx.physics import BACKEND_NAMES, resolve_backend_name
 from openral_mjx.policies import POLICIES
 from openral_mjx.robots import ROBOTS
-from openral_mjx.scenes import SCENES
+from openral_mjx.scenes import SCENES, check_robot
 from openral_mjx.schema import EvalReport, load_report, save_report
 
 
@@ -89,6 +89,7 @@ def _listing() -> str:
 
 
 def _scene_options(args: EvalArgs) -> dict:
+    check_robot(args.scene, args.robot, args.robot_mjcf)
     options: dict = {}
     if args.config is not None:
         options.update(load_yaml(args.config))

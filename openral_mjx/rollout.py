@@ -266,9 +266,9 @@ def run_seeds(
 
     The loop runs on the physics backend's devices (the host CPU for `c`, so a GPU machine
     does not bounce every control step between device and host; every GPU for `mjx`/`warp`).
-    `n_envs` is rounded up to a multiple of the device count; if the compiled batch would need
-    more than `memory_fraction` of a device's free memory, it is shrunk (and recompiled) to
-    fit, and `RunTiming.n_envs` says what ran.
+    `n_envs` is rounded up to a multiple of the device count (and to two envs per device); if
+    the compiled batch would need more than `memory_fraction` of a device's free memory, it is
+    shrunk (and recompiled) to fit, and `RunTiming.n_envs` says what ran.
     With `record_actions`, the arrays include `actions`: (n_seeds, max_steps, action_size).
 
     `devices` overrides the backend's choice (e.g. a subset of the GPUs).
@@ -286,6 +286,10 @@ def run_seeds(
     n_dev = len(layout.devices)
     per_device = -(-min(n_envs, len(seeds)) // n_dev)
     limit = scene.backend.max_batch
+    # XLA compiles a batch of one as scalar code whose fused arithmetic (FMA contraction) can
+    # differ in the last bit from batched code: two envs per device keep seed s's episode
+    # identical whether it runs alone or in a batch.
+    per_device = max(per_device, min(2, limit or 2))
     if limit is not None and per_device > limit:
         raise ConfigError(
             f"{per_device} envs per device exceed the {scene.backend.name} backend's buffers "

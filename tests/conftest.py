@@ -8,7 +8,7 @@ import jax
 import pytest
 
 from openral_mjx.physics import PhysicsSettings
-from openral_mjx.scenes import TabletopPush
+from openral_mjx.scenes import So101Box, TabletopPush
 
 # Reuse XLA compilations across test runs on this machine (CI starts cold either way).
 jax.config.update("jax_compilation_cache_dir", str(Path(__file__).parent.parent / ".jax_cache"))
@@ -29,3 +29,8 @@ def push_mjx() -> TabletopPush:
 def push_warp() -> TabletopPush:
     """MuJoCo-Warp in its CPU mode (the kernels are built once per machine, then cached)."""
     return TabletopPush(backend="warp", settings=PhysicsSettings(batch_size=8))
+
+
+@pytest.fixture(scope="session")
+def box_c() -> So101Box:
+    return So101Box(backend="c", settings=PhysicsSettings(threads=2))

@@ -109,13 +109,19 @@ def test_compare_with_another_scene_or_schema(monkeypatch, capsys, tmp_path):
 
 def test_list(monkeypatch, capsys):
     code, out, _ = run_cli(monkeypatch, capsys, "--list")
-    assert code == 0 and "tabletop_push" in out and "scripted" in out and "so101" in out
+    assert code == 0 and "so101_box, tabletop_push" in out and "scripted" in out and "so101" in out
 
 
 @pytest.mark.parametrize(
     "argv,needle",
     [
-        (["--scene", "nope"], "unknown scene 'nope'; valid: tabletop_push"),
+        (["--scene", "nope"], "unknown scene 'nope'; valid: so101_box, tabletop_push"),
+        (["--scene", "so101_box", "--robot", "ur5"], "scene 'so101_box' requires robot 'so101'"),
+        (
+            ["--scene", "so101_box", "--robot-mjcf", "arm.xml"],
+            "scene 'so101_box' requires robot 'so101', not 'mjcf:arm.xml'",
+        ),
+        (["--scene", "so101_box", "--opt", "tube_diameter=0.03"], "must be < hole_diameter"),
         (["--policy", "nope"], "unknown policy 'nope'; valid: random, scripted, zero"),
         (["--robot", "ur5"], "unknown robot 'ur5'; valid: so101"),
         (["--backend", "gpu"], "unknown backend 'gpu'; valid: auto, mjx, warp, c"),
@@ -178,7 +184,7 @@ def test_process_exit_code_and_no_traceback(tmp_path):
         timeout=120,
     )
     assert proc.returncode == 2
-    assert proc.stderr.strip() == "error: unknown scene 'nope'; valid: tabletop_push"
+    assert proc.stderr.strip() == "error: unknown scene 'nope'; valid: so101_box, tabletop_push"
     assert not (tmp_path / "r").exists()
 
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Callable, Mapping
+from pathlib import Path
 from typing import Any
 
 from openral_mjx.errors import ConfigError
@@ -11,6 +12,7 @@ from openral_mjx.options import from_mapping
 from openral_mjx.physics import PhysicsSettings
 from openral_mjx.registry import Registry
 from openral_mjx.scenes.base import Scene, State
+from openral_mjx.scenes.so101_box import So101Box, So101BoxOptions
 from openral_mjx.scenes.tabletop_push import TabletopPush, TabletopPushOptions
 
 
@@ -25,6 +27,17 @@ class SceneEntry:
 
 SCENES: Registry[SceneEntry] = Registry("scene")
 SCENES.register("tabletop_push")(SceneEntry(TabletopPushOptions, TabletopPush))
+SCENES.register("so101_box")(SceneEntry(So101BoxOptions, So101Box, fixed_robot="so101"))
+
+
+def check_robot(name: str, robot: str | None, robot_mjcf: str | None = None) -> None:
+    """Raise `ConfigError` naming the required robot if scene `name` fixes another one."""
+    fixed = SCENES.get(name).fixed_robot
+    if fixed is None:
+        return
+    asked = robot if robot_mjcf is None else f"mjcf:{Path(str(robot_mjcf)).name}"
+    if asked not in (None, fixed):
+        raise ConfigError(f"scene {name!r} requires robot {fixed!r}, not {asked!r}")
 
 
 def make_scene(
@@ -36,10 +49,11 @@ def make_scene(
 ) -> Scene:
     """Build scene `name` with option `overrides` (validated) on `backend` run with `settings`."""
     entry = SCENES.get(name)
-    options = from_mapping(entry.options_cls, dict(overrides or {}))
-    robot = getattr(options, "robot", None)
-    if entry.fixed_robot is not None and robot not in (None, entry.fixed_robot):
-        raise ConfigError(f"scene {name!r} requires robot {entry.fixed_robot!r}, not {robot!r}")
+    overrides = dict(overrides or {})
+    check_robot(name, overrides.get("robot"), overrides.get("robot_mjcf"))
+    if entry.fixed_robot is not None:
+        overrides.pop("robot_mjcf", None)  # None here: a fixed-robot scene takes no MJCF
+    options = from_mapping(entry.options_cls, overrides)
     return entry.build(options, backend=backend, settings=settings)
 
 
@@ -47,8 +61,11 @@ __all__ = [
     "SCENES",
     "Scene",
     "SceneEntry",
+    "So101Box",
+    "So101BoxOptions",
     "State",
     "TabletopPush",
     "TabletopPushOptions",
+    "check_robot",
     "make_scene",
 ]

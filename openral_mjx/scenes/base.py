@@ -9,11 +9,13 @@ from __future__ import annotations
 
 import abc
 import functools
+from collections.abc import Mapping
 from typing import Any
 
 import jax
 import jax.numpy as jnp
 import mujoco
+import numpy as np
 from flax import struct
 
 from openral_mjx.physics import PhysicsBackend, PhysicsState
@@ -64,13 +66,14 @@ class Scene(abc.ABC):
         return {}
 
     @property
-    @abc.abstractmethod
     def max_steps(self) -> int:
-        """Default episode length in control steps."""
+        """Default episode length in control steps (the options' `max_steps`)."""
+        return int(self.options.max_steps)
 
     @property
-    @abc.abstractmethod
-    def action_size(self) -> int: ...
+    def action_size(self) -> int:
+        """One position target per actuator."""
+        return int(self.mj_model.nu)
 
     @property
     @abc.abstractmethod
@@ -96,3 +99,15 @@ class Scene(abc.ABC):
         """Per-actuator (low, high) control limits."""
         r = jnp.asarray(self.mj_model.actuator_ctrlrange, dtype=jnp.float32)
         return r[:, 0], r[:, 1]
+
+
+def obs_slices(sizes: Mapping[str, int]) -> dict[str, tuple[int, int]]:
+    """Named slices (start, size) of a flat observation made of `sizes`, in order."""
+    starts = np.cumsum([0, *sizes.values()])
+    return {k: (int(s), int(v)) for (k, v), s in zip(sizes.items(), starts, strict=False)}
+
+
+def actuator_joints(model: mujoco.MjModel, joint_ids: np.ndarray) -> jax.Array:
+    """For each actuator, the index in `joint_ids` of the joint it drives."""
+    index = {int(j): i for i, j in enumerate(joint_ids)}
+    return jnp.array([index[int(j)] for j in model.actuator_trnid[:, 0]])

@@ -42,7 +42,8 @@ from openral_mjx.physics.kinematics import site_kinematics
 from openral_mjx.policies.base import Policy
 from openral_mjx.policies.push_expert import push_expert
 from openral_mjx.robots import ROBOTS, RobotSpec, user_robot
-from openral_mjx.scenes.base import Scene, State
+from openral_mjx.scenes.base import Scene, State, actuator_joints, obs_slices
+from openral_mjx.scenes.composition import load_robot, look_at_quat, yaw_quat
 
 Pair = tuple[float, float]
 Vec3 = tuple[float, float, float]
@@ -120,50 +121,10 @@ class TabletopPushOptions:
         return ROBOTS.get(self.robot)
 
 
-def _look_at_quat(pos: Vec3, target: Vec3) -> np.ndarray:
-    """Quaternion of a MuJoCo camera (looks along -z, +y up) at `pos` looking at `target`."""
-    f = np.asarray(target, float) - np.asarray(pos, float)
-    f /= np.linalg.norm(f)
-    up = np.array([0.0, 0.0, 1.0]) if abs(f[2]) < 0.99 else np.array([1.0, 0.0, 0.0])
-    right = np.cross(f, up)
-    right /= np.linalg.norm(right)
-    cam_up = np.cross(right, f)
-    mat = np.stack([right, cam_up, -f], axis=1)
-    quat = np.zeros(4)
-    mujoco.mju_mat2Quat(quat, mat.reshape(-1))
-    return quat
-
-
-def _load_robot(robot: RobotSpec) -> mujoco.MjSpec:
-    try:
-        spec = mujoco.MjSpec.from_file(str(robot.mjcf_path))
-        model = spec.compile()
-    except Exception as e:  # mujoco raises ValueError with the XML error
-        raise ConfigError(f"robot MJCF {str(robot.mjcf_path)!r} failed to load: {e}") from None
-    if model.nu == 0:
-        raise ConfigError(f"robot MJCF {str(robot.mjcf_path)!r} has no actuators")
-    if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, robot.ee_site) < 0:
-        sites = [model.site(i).name for i in range(model.nsite)]
-        raise ConfigError(
-            f"end-effector site {robot.ee_site!r} not in {robot.name}; valid: {', '.join(sites)}"
-        )
-    bad = [
-        model.joint(i).name
-        for i in range(model.njnt)
-        if int(model.jnt_type[i])
-        not in (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
-    ]
-    if bad:
-        raise ConfigError(f"robot joints must be hinge or slide; {bad} are not")
-    if any(int(t) != int(mujoco.mjtTrn.mjTRN_JOINT) for t in model.actuator_trntype):
-        raise ConfigError("every robot actuator must drive a joint (position actuators)")
-    return spec
-
-
 def compose(options: TabletopPushOptions, robot: RobotSpec) -> mujoco.MjSpec:
     """The scene's MjSpec: the robot re-anchored on the table, plus table, cube, goal, cameras."""
     o = options
-    spec = _load_robot(robot)
+    spec = load_robot(robot)
     spec.modelname = "tabletop_push"
     spec.option.timestep = o.timestep
     spec.option.iterations = o.solver_iterations
@@ -222,12 +183,8 @@ def compose(options: TabletopPushOptions, robot: RobotSpec) -> mujoco.MjSpec:
     )
     w.add_light(name="top_light", pos=[0.2, 0, 2.5], dir=[0, 0, -1], diffuse=[0.8, 0.8, 0.8])
     for name, pos in (("overhead", o.camera_overhead_pos), ("front", o.camera_front_pos)):
-        w.add_camera(name=name, pos=list(pos), quat=_look_at_quat(pos, o.camera_target).tolist())
+        w.add_camera(name=name, pos=list(pos), quat=look_at_quat(pos, o.camera_target).tolist())
     return spec
-
-
-def _quat_yaw(yaw: jax.Array) -> jax.Array:
-    return jnp.stack([jnp.cos(yaw / 2), 0.0 * yaw, 0.0 * yaw, jnp.sin(yaw / 2)])
 
 
 class TabletopPush(Scene):
@@ -277,16 +234,7 @@ class TabletopPush(Scene):
             "cube_quat": 4,
             "goal_xy": 2,
         }
-        starts = np.cumsum([0, *sizes.values()])
-        self._layout = {k: (int(s), v) for (k, v), s in zip(sizes.items(), starts, strict=False)}
-
-    @property
-    def max_steps(self) -> int:
-        return self.options.max_steps
-
-    @property
-    def action_size(self) -> int:
-        return int(self.mj_model.nu)
+        self._layout = obs_slices(sizes)
 
     @property
     def obs_layout(self) -> dict[str, tuple[int, int]]:
@@ -323,7 +271,7 @@ class TabletopPush(Scene):
         qpos = self._qpos_home
         a = self.cube_qpos_adr
         qpos = qpos.at[a : a + 3].set(jnp.array([cube[0], cube[1], self.cube_rest_z]))
-        qpos = qpos.at[a + 3 : a + 7].set(_quat_yaw(cube[2]))
+        qpos = qpos.at[a + 3 : a + 7].set(yaw_quat(cube[2]))
         qvel = jnp.zeros(self.mj_model.nv, jnp.float32)
         physics = self.backend.init(qpos, qvel)
         info = {"goal_xy": goal_xy}
@@ -417,8 +365,7 @@ class TabletopPush(Scene):
     def scripted_policy(self) -> Policy:
         """The scene's expert: push along the cube->goal line (see `push_expert`)."""
         m = self.mj_model
-        joint_index = {int(j): i for i, j in enumerate(self.robot_joint_ids)}
-        actuator_joint = jnp.array([joint_index[int(j)] for j in m.actuator_trnid[:, 0]])
+        actuator_joint = actuator_joints(m, self.robot_joint_ids)
         low, high = self.action_bounds()
         return push_expert(
             self.obs_layout,

@@ -57,6 +57,8 @@ class BenchArgs:
     c_max_envs: int = 4096
     """Cap on envs for the MuJoCo C reference (its rate does not depend on N past the cores)."""
     threads: int | None = None
+    contacts_per_env: int = PhysicsSettings.contacts_per_env
+    """Contact buffer per env of the warp backend."""
     """Threads for MuJoCo C (default: all cores)."""
     out: Path = Path("results/bench.json")
     compile_cache: bool = True
@@ -127,7 +129,9 @@ def run(args: BenchArgs) -> int:
     if args.compile_cache:
         enable_compilation_cache()
     threads = args.threads or default_threads()
-    settings = PhysicsSettings(threads=threads, batch_size=max(args.n))
+    settings = PhysicsSettings(
+        threads=threads, batch_size=max(args.n), contacts_per_env=args.contacts_per_env
+    )
     scene = make_scene(args.scene, backend=backend, settings=settings)
     args = dataclasses.replace(args, max_steps=args.max_steps or scene.max_steps)
     policy = make_policy("scripted", scene)

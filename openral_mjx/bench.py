@@ -57,9 +57,9 @@ class BenchArgs:
     c_max_envs: int = 4096
     """Cap on envs for the MuJoCo C reference (its rate does not depend on N past the cores)."""
     threads: int | None = None
+    """Threads for MuJoCo C (default: all cores)."""
     contacts_per_env: int = PhysicsSettings.contacts_per_env
     """Contact buffer per env of the warp backend."""
-    """Threads for MuJoCo C (default: all cores)."""
     out: Path = Path("results/bench.json")
     compile_cache: bool = True
 

@@ -116,7 +116,10 @@ def test_list(monkeypatch, capsys):
     "argv,needle",
     [
         (["--scene", "nope"], "unknown scene 'nope'; valid: tabletop_push"),
-        (["--policy", "nope"], "unknown policy 'nope'; valid: random, scripted, zero"),
+        (
+            ["--policy", "nope"],
+            "unknown policy 'nope'; valid: mlp, mlp-sample, random, scripted, zero",
+        ),
         (["--robot", "ur5"], "unknown robot 'ur5'; valid: so101"),
         (["--backend", "gpu"], "unknown backend 'gpu'; valid: auto, mjx, warp, c"),
         (["--opt", "goal_radiuss=0.1"], "unknown option for TabletopPushOptions 'goal_radiuss'"),

@@ -417,16 +417,22 @@ class TabletopPush(Scene):
 
         return ee_pose
 
+    def _actuator_joint(self) -> list[int]:
+        """For each actuator, the index of its joint among the robot joints (`joint_pos`)."""
+        joint_index = {int(j): i for i, j in enumerate(self.robot_joint_ids)}
+        return [joint_index[int(j)] for j in self.mj_model.actuator_trnid[:, 0]]
+
+    def action_obs_index(self) -> tuple[int, ...]:
+        start, _ = self._layout["joint_pos"]
+        return tuple(start + i for i in self._actuator_joint())
+
     def scripted_policy(self) -> Policy:
         """The scene's expert: push along the cube->goal line (see `push_expert`)."""
-        m = self.mj_model
-        joint_index = {int(j): i for i, j in enumerate(self.robot_joint_ids)}
-        actuator_joint = jnp.array([joint_index[int(j)] for j in m.actuator_trnid[:, 0]])
         low, high = self.action_bounds()
         return push_expert(
             self.obs_layout,
             self.forward_kinematics(),
-            actuator_joint,
+            jnp.array(self._actuator_joint()),
             low,
             high,
             table_z=self.options.table_height,

@@ -83,23 +83,26 @@ def restore_tree(
     abstract = _keyed([jax.ShapeDtypeStruct(np.shape(x), jnp.result_type(x)) for x in leaves])
     ckpt = ocp.Checkpointer(ocp.StandardCheckpointHandler())
     try:
+        # Compare shapes from the metadata first: a mismatch found by the restore itself
+        # leaves orbax's pending reads to print tracebacks from background threads.
+        stored = {k: tuple(v.shape) for k, v in ckpt.metadata(path).item_metadata.tree.items()}
+        wanted = {k: tuple(v.shape) for k, v in abstract.items()}
+        if stored != wanted:
+            diff = sorted(set(stored.items()) ^ set(wanted.items()))[0][0]
+            raise ConfigError(
+                f"{what} {str(path)!r} holds other arrays than expected (array {diff}: "
+                f"{stored.get(diff, 'missing')} stored, {wanted.get(diff, 'none')} expected)"
+            )
         restored = ckpt.restore(path, args=ocp.args.StandardRestore(abstract))
+    except ConfigError:
+        raise
     except Exception as e:  # orbax/tensorstore raise many types for damaged files
         detail = (str(e).strip().splitlines() or [type(e).__name__])[0][:200]
         raise ConfigError(f"{what} {str(path)!r} is corrupt or incompatible: {detail}") from None
     finally:
         ckpt.close()
-    out = []
-    for i, leaf in enumerate(leaves):
-        key = f"{i:05d}"
-        if key in restored:
-            value = restored[key]
-            if np.shape(value) != np.shape(leaf):
-                raise ConfigError(
-                    f"{what} {str(path)!r} holds shape {np.shape(value)} where "
-                    f"{np.shape(leaf)} is expected"
-                )
-            out.append(value)
-        else:
-            out.append(jnp.zeros(np.shape(leaf), jnp.result_type(leaf)))
+    out = [
+        restored.get(f"{i:05d}", jnp.zeros(np.shape(leaf), jnp.result_type(leaf)))
+        for i, leaf in enumerate(leaves)
+    ]
     return jax.tree.unflatten(treedef, out)

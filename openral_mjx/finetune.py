@@ -24,11 +24,16 @@ from openral_mjx.cli_common import command_line, guarded
 from openral_mjx.compile_cache import enable_compilation_cache
 from openral_mjx.errors import ConfigError
 from openral_mjx.options import load_yaml, parse_overrides, to_dict
-from openral_mjx.physics import resolve_backend_name
+from openral_mjx.physics import PhysicsSettings, resolve_backend_name
 from openral_mjx.policies.mlp import MlpConfig, check_compatible, init_params, load_mlp, save_mlp
 from openral_mjx.scenes import SCENES, Scene, make_scene
 from openral_mjx.schema import write_json_atomic
+from openral_mjx.training.bc import BCConfig, collect_demos, fit, policy_config
+from openral_mjx.training.curves import plot_learning_curve
 from openral_mjx.training.evaluation import TEST_SEEDS, VALIDATION_SEEDS, HeldOutEvaluator
+from openral_mjx.training.ppo import PPOConfig
+from openral_mjx.training.run_dir import RunDir
+from openral_mjx.training.session import PPOSession, Schedule
 
 
 @dataclasses.dataclass
@@ -36,7 +41,8 @@ class SceneArgs:
     scene: str = "tabletop_push"
     """Scene ID."""
     backend: str = "auto"
-    """Physics backend: auto (mjx with an accelerator, else c), mjx or c."""
+    """Physics backend: auto (warp with warp-lang on a CUDA GPU, mjx on another accelerator,
+    else c), mjx, warp or c. Training runs on the backend's first device."""
     config: Path | None = None
     """YAML file of scene options (see configs/)."""
     opt: tuple[str, ...] = ()
@@ -92,9 +98,9 @@ class PpoArgs(SceneArgs):
     num_timesteps: int | None = None
     """Environment steps to train for, rounded up to whole updates (default 20M)."""
     n_envs: int = 4096
-    unroll_length: int = 32
+    unroll_length: int = 16
     """Control steps per env per update."""
-    minibatches: int = 16
+    minibatches: int = 8
     epochs: int = 4
     """Passes over each update's batch."""
     actor_lr: float = 3e-5
@@ -117,11 +123,11 @@ class PpoArgs(SceneArgs):
     update_normalizer: bool | None = None
     """Keep updating the observation statistics (default: only when training from scratch)."""
     seed: int = 0
-    eval_every: int = 10
+    eval_every: int = 25
     """Evaluate on held-out validation seeds every this many updates (and at the end)."""
     eval_episodes: int = 1024
     eval_n_envs: int = 1024
-    checkpoint_every: int = 10
+    checkpoint_every: int = 50
     """Checkpoint the full training state every this many updates (and at the end)."""
     log_every: int = 1
     """Print a progress line every this many updates."""
@@ -147,9 +153,13 @@ def _scene_options(args: SceneArgs) -> dict[str, Any]:
     return options
 
 
-def _build_scene(name: str, options: dict[str, Any], backend: str, threads: int | None) -> Scene:
+def _build_scene(
+    name: str, options: dict[str, Any], backend: str, threads: int | None, batch: int
+) -> Scene:
+    """The scene on `backend`, its buffers (`warp`) sized for `batch` envs per device."""
     SCENES.get(name)
-    return make_scene(name, options, backend=backend, threads=threads)
+    settings = PhysicsSettings(threads=threads, batch_size=batch)
+    return make_scene(name, options, backend=backend, settings=settings)
 
 
 def _fmt_steps(n: float) -> str:
@@ -160,8 +170,6 @@ def _fmt_steps(n: float) -> str:
 
 
 def run_bc(args: BcArgs) -> int:
-    from openral_mjx.training.bc import BCConfig, collect_demos, fit, policy_config
-
     for name in ("n_demos", "n_envs"):
         if getattr(args, name) < 1:
             raise ConfigError(f"{name} must be a positive integer, got {getattr(args, name)}")
@@ -182,7 +190,7 @@ def run_bc(args: BcArgs) -> int:
     backend = resolve_backend_name(args.backend)
     if args.compile_cache:
         enable_compilation_cache()
-    scene = _build_scene(args.scene, _scene_options(args), backend, args.threads)
+    scene = _build_scene(args.scene, _scene_options(args), backend, args.threads, args.n_envs)
     steps = args.max_steps or scene.max_steps
     t0 = time.perf_counter()
     _log(f"demonstrations: {args.n_demos} expert episodes on {backend} ...")
@@ -273,9 +281,7 @@ def _scratch_config(scene: Scene, args: PpoArgs) -> MlpConfig:
     )
 
 
-def _ppo_config(args: PpoArgs, scene: Scene) -> Any:
-    from openral_mjx.training.ppo import PPOConfig
-
+def _ppo_config(args: PpoArgs, scene: Scene) -> PPOConfig:
     normalizer = args.init is None if args.update_normalizer is None else args.update_normalizer
     return PPOConfig(
         n_envs=args.n_envs,
@@ -301,12 +307,11 @@ def _ppo_config(args: PpoArgs, scene: Scene) -> Any:
 class _Progress:
     """Prints the run's progress lines to stderr and redraws the learning curve after evals."""
 
-    def __init__(self, run_dir, num_updates: int, log_every: int, title: str) -> None:
+    def __init__(self, run_dir, num_updates: int, log_every: int, title: str, warmup: int) -> None:
         self.dir, self.n, self.log_every, self.title = run_dir, num_updates, log_every, title
+        self.warmup = warmup
 
     def __call__(self, row: dict[str, Any]) -> None:
-        from openral_mjx.training.curves import plot_learning_curve
-
         kind, u = row["kind"], row["update"]
         if kind == "compiled":
             _log(f"compiled the update in {row['compile_s']:.1f} s; starting at update {u}")
@@ -327,15 +332,20 @@ class _Progress:
                 f"{100 * row['ci_high']:.1f}] on {row['n_episodes']} validation seeds"
                 + ("  (best)" if row["best"] else "")
             )
-            plot_learning_curve(self.dir.read_metrics(), self.dir.curve_path, self.title)
+            self.plot()
+
+    def plot(self) -> None:
+        rows = self.dir.read_metrics()
+        plot_learning_curve(rows, self.dir.curve_path, self.title, self.warmup)
 
 
 def run_ppo(args: PpoArgs) -> int:
-    from openral_mjx.training.curves import plot_learning_curve
-    from openral_mjx.training.ppo import PPOConfig
-    from openral_mjx.training.run_dir import RunDir
-    from openral_mjx.training.session import PPOSession, Schedule
-
+    try:
+        import matplotlib  # noqa: F401  (the learning curve)
+    except ImportError:
+        raise ConfigError(
+            "ppo draws a learning curve with matplotlib: pip install 'openral_mjx[train]'"
+        ) from None
     run_dir = RunDir(args.out)
     if args.resume:
         settings = run_dir.load_settings()
@@ -361,8 +371,10 @@ def run_ppo(args: PpoArgs) -> int:
         raise ConfigError(f"num_timesteps must be a positive integer, got {n}")
     if args.compile_cache:
         enable_compilation_cache()
+    n_envs = settings["ppo"]["n_envs"] if args.resume else args.n_envs
+    batch = max(n_envs, settings["schedule"]["eval_n_envs"])
     scene = _build_scene(
-        settings["scene"], settings["scene_options"], settings["backend"], args.threads
+        settings["scene"], settings["scene_options"], settings["backend"], args.threads, batch
     )
     init_policy = None
     if args.resume:
@@ -388,7 +400,8 @@ def run_ppo(args: PpoArgs) -> int:
         run_dir.create(settings)
 
     title = f"PPO on {scene.name} ({settings['backend']}), from {settings['init'] or 'scratch'}"
-    progress = _Progress(run_dir, num_updates, int(settings["log_every"]), title)
+    warmup = ppo_config.max_steps * ppo_config.n_envs  # every env has run a full episode
+    progress = _Progress(run_dir, num_updates, int(settings["log_every"]), title, warmup)
     _log(
         f"ppo on {scene.name}/{settings['backend']}: {num_updates} updates x "
         f"{ppo_config.steps_per_update:,} steps ({ppo_config.n_envs} envs x "
@@ -396,7 +409,7 @@ def run_ppo(args: PpoArgs) -> int:
     )
     session = PPOSession(scene, run_dir, mlp_config, ppo_config, schedule, on_row=progress)
     summary = session.run(init_policy, resume=args.resume)
-    plot_learning_curve(run_dir.read_metrics(), run_dir.curve_path, title)
+    progress.plot()
     init = summary["init"]
     start = "" if init is None else f"{100 * init['success_rate']:.1f}% -> "
     rate = summary["steps_per_s"]

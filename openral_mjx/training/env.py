@@ -39,15 +39,6 @@ class StepResult:
     episode_return: jax.Array  # return of the episode that ended here (0 where not done)
 
 
-def _select(mask: jax.Array, a, b):
-    """`a` where `mask` (per env) else `b`, leaf by leaf."""
-
-    def pick(x, y):
-        return jnp.where(mask.reshape(mask.shape + (1,) * (x.ndim - 1)), x, y)
-
-    return jax.tree.map(pick, a, b)
-
-
 class BatchedEnv:
     """`n_envs` copies of `scene` with a `max_steps` time limit and auto-reset."""
 
@@ -82,7 +73,7 @@ class BatchedEnv:
             episode_return=jnp.where(done, ret, 0.0),
         )
         env = EnvState(
-            scene=_select(done, fresh, new),
+            scene=jax.vmap(self.scene.select)(done, fresh, new),
             t=jnp.where(done, 0, t),
             episode_return=jnp.where(done, 0.0, ret),
         )

@@ -48,8 +48,8 @@ class PPOConfig:
     """PPO hyperparameters (defaults sized for thousands of envs on one GPU)."""
 
     n_envs: int = 4096
-    unroll_length: int = 32
-    n_minibatches: int = 16
+    unroll_length: int = 16
+    n_minibatches: int = 8
     n_epochs: int = 4
     actor_lr: float = 3e-5
     critic_lr: float = 3e-4

@@ -81,8 +81,9 @@ class PPOSession:
         self.ppo = PPO(scene, mlp_config, ppo_config)
         self.steps_per_update = ppo_config.steps_per_update
         self.on_row = on_row or (lambda row: None)
-        device = scene.backend.jax_device
-        self._put = (lambda x: jax.device_put(x, device)) if device is not None else (lambda x: x)
+        # Training runs on one device: the backend's first (the host CPU for `c`).
+        device = scene.backend.devices()[0]
+        self._put = lambda x: jax.device_put(x, device)
 
     def _emit(self, row: Row) -> None:
         self.dir.append_metrics(row)

@@ -13,6 +13,7 @@ discordant counts and the two-sided exact p-value; writes them as JSON with `--o
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from pathlib import Path
 
@@ -27,6 +28,18 @@ def outcomes(path: Path) -> tuple[str, dict[int, bool]]:
     return report.policy, {e.metadata["seed"]: e.success for e in report.episodes}
 
 
+def log10_p(k: int, n: int) -> float:
+    """log10 of the two-sided exact p-value 2 P(X <= k), X ~ Binomial(n, 1/2), k <= n / 2,
+    summed in log space: it stays finite where the p-value itself underflows."""
+    terms = [
+        math.lgamma(n + 1) - math.lgamma(j + 1) - math.lgamma(n - j + 1) - n * math.log(2)
+        for j in range(k + 1)
+    ]
+    top = max(terms)
+    log_tail = top + math.log(sum(math.exp(t - top) for t in terms))
+    return min(0.0, (math.log(2) + log_tail) / math.log(10))
+
+
 def compare(before: dict[int, bool], after: dict[int, bool]) -> dict:
     seeds = sorted(set(before) & set(after))
     if not seeds:
@@ -34,7 +47,13 @@ def compare(before: dict[int, bool], after: dict[int, bool]) -> dict:
     b = sum(1 for s in seeds if before[s] and not after[s])  # before-only successes
     c = sum(1 for s in seeds if after[s] and not before[s])  # after-only successes
     p = binomtest(c, b + c, 0.5).pvalue if b + c else 1.0
-    out = {"n_common_seeds": len(seeds), "before_only": b, "after_only": c, "p_value": p}
+    out = {
+        "n_common_seeds": len(seeds),
+        "before_only": b,
+        "after_only": c,
+        "p_value": p,
+        "log10_p_value": log10_p(min(b, c), b + c) if b + c else 0.0,
+    }
     for name, runs in (("before", before), ("after", after)):
         k = sum(runs[s] for s in seeds)
         low, high = wilson_interval(k, len(seeds))
@@ -61,8 +80,8 @@ def main(argv: list[str] | None = None) -> int:
     verdict = "significant" if r["p_value"] < args.alpha else "not significant"
     print(
         f"paired on {n} common seeds: before-only successes {r['before_only']}, after-only "
-        f"{r['after_only']}; exact McNemar p = {r['p_value']:.3g} (two-sided): {verdict} at "
-        f"alpha = {args.alpha}"
+        f"{r['after_only']}; exact McNemar p = {r['p_value']:.3g} "
+        f"(log10 p = {r['log10_p_value']:.1f}, two-sided): {verdict} at alpha = {args.alpha}"
     )
     if args.out:
         write_json_atomic(args.out, {**r, "before_policy": name_a, "after_policy": name_b})

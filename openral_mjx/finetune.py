@@ -29,7 +29,7 @@ from openral_mjx.policies.mlp import MlpConfig, check_compatible, init_params, l
 from openral_mjx.scenes import SCENES, Scene, make_scene
 from openral_mjx.schema import write_json_atomic
 from openral_mjx.training.bc import BCConfig, collect_demos, fit, policy_config
-from openral_mjx.training.curves import plot_learning_curve
+from openral_mjx.training.curves import can_plot, plot_learning_curve
 from openral_mjx.training.evaluation import TEST_SEEDS, VALIDATION_SEEDS, HeldOutEvaluator
 from openral_mjx.training.ppo import PPOConfig
 from openral_mjx.training.run_dir import RunDir
@@ -79,6 +79,14 @@ class BcArgs(SceneArgs):
     """Network initialisation and minibatch order."""
     eval_episodes: int = 1024
     """Held-out validation episodes to evaluate the clone on (0: skip)."""
+
+
+@dataclasses.dataclass
+class CurveArgs:
+    """(Re)draw a PPO run's learning curve from its metrics log."""
+
+    out: Path = Path("runs/ppo")
+    """Run directory."""
 
 
 @dataclasses.dataclass
@@ -186,7 +194,6 @@ def run_bc(args: BcArgs) -> int:
         min_std=args.min_std,
         seed=args.seed,
     )
-    MlpConfig(1, 1, (0.0,), (1.0,), hidden=args.hidden, activation=args.activation)  # validate
     backend = resolve_backend_name(args.backend)
     if args.compile_cache:
         enable_compilation_cache()
@@ -304,12 +311,22 @@ def _ppo_config(args: PpoArgs, scene: Scene) -> PPOConfig:
     )
 
 
+def _plot(run_dir: RunDir, settings: dict[str, Any]) -> None:
+    """Draw the run's learning curve from its metrics log (training statistics start once every
+    env has run a full episode)."""
+    title = (
+        f"PPO on {settings['scene']} ({settings['backend']}), from {settings['init'] or 'scratch'}"
+    )
+    warmup = settings["ppo"]["max_steps"] * settings["ppo"]["n_envs"]
+    plot_learning_curve(run_dir.read_metrics(), run_dir.curve_path, title, warmup)
+
+
 class _Progress:
     """Prints the run's progress lines to stderr and redraws the learning curve after evals."""
 
-    def __init__(self, run_dir, num_updates: int, log_every: int, title: str, warmup: int) -> None:
-        self.dir, self.n, self.log_every, self.title = run_dir, num_updates, log_every, title
-        self.warmup = warmup
+    def __init__(self, run_dir: RunDir, settings: dict[str, Any], num_updates: int) -> None:
+        self.dir, self.settings, self.n = run_dir, settings, num_updates
+        self.log_every = int(settings["log_every"])
 
     def __call__(self, row: dict[str, Any]) -> None:
         kind, u = row["kind"], row["update"]
@@ -335,17 +352,11 @@ class _Progress:
             self.plot()
 
     def plot(self) -> None:
-        rows = self.dir.read_metrics()
-        plot_learning_curve(rows, self.dir.curve_path, self.title, self.warmup)
+        if can_plot():
+            _plot(self.dir, self.settings)
 
 
 def run_ppo(args: PpoArgs) -> int:
-    try:
-        import matplotlib  # noqa: F401  (the learning curve)
-    except ImportError:
-        raise ConfigError(
-            "ppo draws a learning curve with matplotlib: pip install 'openral_mjx[train]'"
-        ) from None
     run_dir = RunDir(args.out)
     if args.resume:
         settings = run_dir.load_settings()
@@ -399,9 +410,12 @@ def run_ppo(args: PpoArgs) -> int:
         settings["command"] = command_line("openral_mjx.finetune", ["ppo", *sys.argv[2:]])
         run_dir.create(settings)
 
-    title = f"PPO on {scene.name} ({settings['backend']}), from {settings['init'] or 'scratch'}"
-    warmup = ppo_config.max_steps * ppo_config.n_envs  # every env has run a full episode
-    progress = _Progress(run_dir, num_updates, int(settings["log_every"]), title, warmup)
+    progress = _Progress(run_dir, settings, num_updates)
+    if not can_plot():
+        _log(
+            "matplotlib is not installed: no learning curve (pip install 'openral_mjx[train]', "
+            f"then python -m openral_mjx.finetune curve --out {run_dir.path})"
+        )
     _log(
         f"ppo on {scene.name}/{settings['backend']}: {num_updates} updates x "
         f"{ppo_config.steps_per_update:,} steps ({ppo_config.n_envs} envs x "
@@ -418,10 +432,12 @@ def run_ppo(args: PpoArgs) -> int:
         f"ppo on {scene.name}/{settings['backend']}: validation success {start}"
         f"{100 * summary['final_success_rate']:.1f}% (best "
         f"{100 * summary['best_success_rate']:.1f}% at update {summary['best_update']}), "
-        f"{_fmt_steps(summary['env_steps'])} steps, {summary['wall_s']:.0f} s training{speed}"
+        f"{_fmt_steps(summary['env_steps'])} steps, {summary['wall_s']:.0f} s training{speed}, "
+        f"{summary['elapsed_s']:.0f} s in all"
     )
     print(f"policies: {run_dir.best} (best), {run_dir.final} (last)")
-    print(f"metrics: {run_dir.metrics_path}; curve: {run_dir.curve_path}")
+    curve = f"; curve: {run_dir.curve_path}" if can_plot() else ""
+    print(f"metrics: {run_dir.metrics_path}{curve}")
     print(
         f"test: python -m openral_mjx.eval --scene {scene.name} --policy mlp:{run_dir.best} "
         f"--seed {TEST_SEEDS} --n-episodes 4096"
@@ -429,13 +445,21 @@ def run_ppo(args: PpoArgs) -> int:
     return 0
 
 
+def run_curve(args: CurveArgs) -> int:
+    if not can_plot():
+        raise ConfigError("drawing the curve needs matplotlib: pip install 'openral_mjx[train]'")
+    run_dir = RunDir(args.out)
+    _plot(run_dir, run_dir.load_settings())
+    print(f"curve: {run_dir.curve_path}")
+    return 0
+
+
 def main() -> None:
     args = tyro.extras.subcommand_cli_from_dict(
-        {"bc": BcArgs, "ppo": PpoArgs}, prog="python -m openral_mjx.finetune"
+        {"bc": BcArgs, "ppo": PpoArgs, "curve": CurveArgs}, prog="python -m openral_mjx.finetune"
     )
-    if isinstance(args, BcArgs):
-        raise SystemExit(guarded(lambda: run_bc(args)))
-    raise SystemExit(guarded(lambda: run_ppo(args)))
+    run = {BcArgs: run_bc, PpoArgs: run_ppo, CurveArgs: run_curve}[type(args)]
+    raise SystemExit(guarded(lambda: run(args)))
 
 
 if __name__ == "__main__":

@@ -114,7 +114,11 @@ def test_ppo_resume_matches_uninterrupted_run(monkeypatch, capsys, tmp_path, bc_
     _, final = load_mlp(a / "final")
     assert not np.array_equal(init["actor"]["params"]["_Dense_0"]["kernel"],
                               final["actor"]["params"]["_Dense_0"]["kernel"])  # fmt: skip
-    assert (a / "learning_curve.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    png = a / "learning_curve.png"
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    png.unlink()
+    assert _run(monkeypatch, capsys, finetune, "curve", "--out", str(a))[0] == 0
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     settings = json.loads((a / "run.json").read_text())
     assert settings["init"] == str(bc_dir) and settings["ppo"]["n_envs"] == 8
 

@@ -23,6 +23,7 @@ def test_counts_and_exact_p_value():
     assert r["before"]["successes"] == 8 and r["after"]["successes"] == 15
     tail = sum(math.comb(13, k) for k in range(4)) / 2**13
     assert r["p_value"] == pytest.approx(2 * tail, rel=1e-12)
+    assert r["log10_p_value"] == pytest.approx(math.log10(2 * tail), rel=1e-9)
 
 
 def test_no_discordant_pairs_is_p_one():

@@ -43,6 +43,14 @@ PARAMS_DIGESTS = "params_sha256"
 ACTIVATIONS = {"silu": nn.silu, "tanh": nn.tanh, "relu": nn.relu}
 
 
+def check_architecture(hidden: Sequence[int], activation: str) -> None:
+    """Reject an empty or non-positive layer list, or an unknown activation."""
+    if activation not in ACTIVATIONS:
+        raise unknown("activation", activation, ACTIVATIONS)
+    if not hidden or min(hidden) < 1:
+        raise ConfigError(f"hidden layer sizes must be positive, got {list(hidden)}")
+
+
 @dataclasses.dataclass(frozen=True)
 class MlpConfig:
     """Everything besides the arrays needed to rebuild and run a saved `mlp` policy."""
@@ -59,10 +67,7 @@ class MlpConfig:
     metadata: dict[str, Any] = dataclasses.field(default_factory=dict, compare=False)
 
     def __post_init__(self) -> None:
-        if self.activation not in ACTIVATIONS:
-            raise unknown("activation", self.activation, ACTIVATIONS)
-        if not self.hidden or min(self.hidden) < 1:
-            raise ConfigError(f"hidden layer sizes must be positive, got {list(self.hidden)}")
+        check_architecture(self.hidden, self.activation)
         n = self.action_size
         if len(self.action_offset) != n or len(self.action_scale) != n:
             raise ConfigError(f"action_offset and action_scale need {n} values each")

@@ -24,7 +24,7 @@ import optax
 
 from openral_mjx.errors import ConfigError
 from openral_mjx.options import to_dict
-from openral_mjx.policies.mlp import MlpConfig, distribution, init_params
+from openral_mjx.policies.mlp import MlpConfig, check_architecture, distribution, init_params
 from openral_mjx.policies.normalizer import init_stats, update_stats
 from openral_mjx.rollout import run_seeds
 from openral_mjx.scenes.base import Scene
@@ -54,6 +54,7 @@ class BCConfig:
     seed: int = 0
 
     def __post_init__(self) -> None:
+        check_architecture(self.hidden, self.activation)
         for name in ("epochs", "batch_size"):
             if getattr(self, name) < 1:
                 raise ConfigError(f"{name} must be a positive integer, got {getattr(self, name)}")

@@ -2,11 +2,17 @@
 
 from __future__ import annotations
 
+import importlib.util
 import os
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+
+def can_plot() -> bool:
+    """Whether matplotlib is installed (the `train` extra)."""
+    return importlib.util.find_spec("matplotlib") is not None
 
 
 def _series(

@@ -53,14 +53,14 @@ class RunDir:
 
     def load_settings(self) -> dict[str, Any]:
         if not self.settings_path.is_file():
-            raise ConfigError(f"--resume: no run in {str(self.path)!r} (no run.json)")
+            raise ConfigError(f"no run in {str(self.path)!r} (no run.json)")
         try:
             data = json.loads(self.settings_path.read_text())
         except json.JSONDecodeError as e:
             path = str(self.settings_path)
-            raise ConfigError(f"--resume: {path!r} is not valid JSON: {e}") from None
+            raise ConfigError(f"{path!r} is not valid JSON: {e}") from None
         if data.pop("format", None) != RUN_FORMAT:
-            raise ConfigError(f"--resume: {str(self.settings_path)!r} is not a {RUN_FORMAT} file")
+            raise ConfigError(f"{str(self.settings_path)!r} is not a {RUN_FORMAT} file")
         return data
 
     def save_settings(self, settings: dict[str, Any]) -> None:
@@ -116,7 +116,7 @@ class RunDir:
         """The newest checkpoint, restored onto `template`, and its progress record."""
         found = self._checkpoints()
         if not found:
-            raise ConfigError(f"--resume: no checkpoint under {str(self.state_dir)!r}")
+            raise ConfigError(f"no checkpoint under {str(self.state_dir)!r}")
         _, path = found[-1]
         try:
             progress = json.loads((path / "progress.json").read_text())

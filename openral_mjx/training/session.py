@@ -135,7 +135,10 @@ class PPOSession:
 
     def run(self, init_policy: dict[str, Any] | None, *, resume: bool) -> Row:
         """Train to `schedule.num_updates`; `resume` continues from the newest checkpoint
-        (`init_policy` is then ignored). Returns a summary row."""
+        (`init_policy` is then ignored). Returns a summary row: `wall_s` counts the updates
+        alone (all sessions of the run), `elapsed_s` this session's whole time (compilation,
+        evaluations and checkpoints included)."""
+        started = time.perf_counter()
         ts, best_params, progress = self._start(init_policy, resume)
         start, s = int(ts.update), self.schedule
         if start > s.num_updates:
@@ -208,6 +211,7 @@ class PPOSession:
             "update": s.num_updates,
             "env_steps": s.num_updates * self.steps_per_update,
             "wall_s": wall,
+            "elapsed_s": time.perf_counter() - started,
             "steps_per_s": (trained * self.steps_per_update / (wall - wall_start))
             if trained
             else None,

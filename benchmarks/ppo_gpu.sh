@@ -6,6 +6,7 @@
 #   bash benchmarks/ppo_gpu.sh bc      # ~2-3 min: demos on MJX, clone, validation success
 #   bash benchmarks/ppo_gpu.sh ppo     # ~6-8 min: PPO, 20M env steps (4,096 envs x 16)
 #   bash benchmarks/ppo_gpu.sh test    # ~2 min: both policies on test seeds, exact McNemar
+#   bash benchmarks/ppo_gpu.sh scratch # optional, ~6-8 min: the same PPO from a fresh network
 #
 # Runs live in runs/gpu/ (git-ignored, so kept between calls on a warm machine); each stage
 # copies its small outputs (logs, reports, checkpoints, metrics; not the training state) to
@@ -13,7 +14,7 @@
 # resume` continues it from its last checkpoint. BACKEND, N_ENVS, N_DEMOS, EVAL_EPISODES,
 # TEST_EPISODES and STEPS override the sizes (a CPU smoke test: BACKEND=c and small numbers).
 set -euo pipefail
-stage=${1:?usage: ppo_gpu.sh bc|ppo|resume|test}
+stage=${1:?usage: ppo_gpu.sh bc|ppo|resume|test|scratch}
 out=${OUT:-results/ppo_gpu}
 runs=runs/gpu
 py=${PYTHON:-python3}
@@ -49,6 +50,14 @@ case $stage in
     cp -r "$runs/ppo/run.json" "$runs/ppo/metrics.jsonl" "$runs/ppo/best" "$runs/ppo/final" "$out/ppo/"
     cp "$runs/ppo/learning_curve.png" "$out/ppo/" 2>/dev/null || true
     ;;
+  scratch)
+    timed "$out/scratch.log" "$py" -m openral_mjx.finetune ppo --out "$runs/scratch" \
+      --num-timesteps "$steps" --backend "$backend" --n-envs "$n_envs" --unroll-length 16 \
+      --minibatches 8 --eval-every 25 --checkpoint-every 50 \
+      --eval-episodes "$eval_episodes" --eval-n-envs "$eval_episodes"
+    rm -rf "$out/scratch" && mkdir -p "$out/scratch"
+    cp -r "$runs/scratch/run.json" "$runs/scratch/metrics.jsonl" "$runs/scratch/best" "$out/scratch/"
+    ;;
   test)
     for name in bc ppo/best; do
       tag=${name%%/*}
@@ -59,5 +68,5 @@ case $stage in
     "$py" benchmarks/paired_mcnemar.py "$out/test_bc.json" "$out/test_ppo.json" \
       --out "$out/paired.json" | tee "$out/paired.log"
     ;;
-  *) echo "unknown stage $stage: bc, ppo, resume or test"; exit 2 ;;
+  *) echo "unknown stage $stage: bc, ppo, resume, test or scratch"; exit 2 ;;
 esac

@@ -65,8 +65,8 @@ case $stage in
         --policy "mlp:$runs/$name" --seed 2000000000 --n-episodes "$test_episodes" \
         --n-envs "$n_envs" --out "$out/test_$tag.json"
     done
-    "$py" benchmarks/paired_mcnemar.py "$out/test_bc.json" "$out/test_ppo.json" \
-      --out "$out/paired.json" | tee "$out/paired.log"
+    "$py" -m openral_mjx.compare "$out/test_bc.json" "$out/test_ppo.json" --confidence 0.99 \
+      | tee "$out/paired.log"
     ;;
   *) echo "unknown stage $stage: bc, ppo, resume, test or scratch"; exit 2 ;;
 esac

@@ -97,3 +97,8 @@ def test_reset_spreads_episode_counters(push_c):
 def test_config_validation(kw, needle):
     with pytest.raises(ConfigError, match=needle):
         PPOConfig(**kw)
+
+
+def test_warp_is_refused_for_training(push_warp):
+    with pytest.raises(ConfigError, match="backend 'warp' shares its contact buffer"):
+        BatchedEnv(push_warp, n_envs=4, max_steps=10)

@@ -145,7 +145,7 @@ def run(args: BenchArgs) -> int:
             seeds=np.arange(n),
             n_envs=n,
             max_steps=args.max_steps,
-            record_actions=True,
+            record=("actions",),
         )
         evaluator = n * args.max_steps / timing.run_s
         row = {"n": n, "evaluator_steps_per_s": evaluator, "evaluator_compile_s": timing.compile_s}

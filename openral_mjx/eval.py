@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import dataclasses
 import datetime as dt
+import re
 import sys
 from pathlib import Path
 
@@ -147,7 +148,8 @@ def run(args: EvalArgs) -> int:
     backend = resolve_backend_name(args.backend)
     options = _scene_options(args)
     stamp = dt.datetime.now().strftime("%Y%m%d-%H%M%S")
-    out = args.out or Path("results") / f"{args.scene}_{args.policy.replace(':', '-')}_{stamp}.json"
+    policy_tag = re.sub(r"[^A-Za-z0-9_.-]+", "-", args.policy).strip("-")  # mlp:a/b: mlp-a-b
+    out = args.out or Path("results") / f"{args.scene}_{policy_tag}_{stamp}.json"
     if out.exists() and out.is_dir():
         raise ConfigError(f"--out {str(out)!r} is a directory; give a file path")
     baseline = None

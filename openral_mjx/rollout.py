@@ -68,14 +68,22 @@ def seed_keys(seeds: jax.Array) -> tuple[jax.Array, jax.Array]:
     return split[:, 0], split[:, 1]
 
 
+TRACES = ("obs", "actions")
+
+
 def make_episode_fn(
-    scene: Scene, policy: Policy, max_steps: int, *, record_actions: bool = False
-) -> Callable[[Any, jax.Array], EpisodeArrays | tuple[EpisodeArrays, jax.Array]]:
+    scene: Scene, policy: Policy, max_steps: int, *, record: tuple[str, ...] = ()
+) -> Callable[[Any, jax.Array], EpisodeArrays | tuple[EpisodeArrays, dict[str, jax.Array]]]:
     """A pure function `(policy_params, seeds[n]) -> EpisodeArrays` (jit it).
 
-    With `record_actions`, it also returns the actions taken, `(max_steps, n, action_size)`
-    (for benchmarks that replay them open-loop).
+    With `record` (a subset of `TRACES`), it also returns per-step traces, each
+    `(max_steps, n, ...)`: `obs`, the observation each action was chosen from, and `actions`
+    (for demonstrations, and for benchmarks that replay actions open-loop). Steps past an
+    episode's end are recorded too; `EpisodeArrays.steps` says how many count.
     """
+    unknown_traces = sorted(set(record) - set(TRACES))
+    if unknown_traces:
+        raise ValueError(f"unknown traces {unknown_traces}; valid: {', '.join(TRACES)}")
 
     def episode(params: Any, seeds: jax.Array) -> EpisodeArrays:
         reset_keys, policy_keys = seed_keys(seeds)
@@ -117,12 +125,13 @@ def make_episode_fn(
             # end counts. Freezing them instead would copy the whole physics state every step
             # (~60-115 KB per env on MJX/Warp), which costs more than the physics it saves.
             new_done = done | new_state.done
-            return (new_state, new_pstate, acc, new_done), (action if record_actions else None)
+            trace = {"obs": state.obs, "actions": action}
+            return (new_state, new_pstate, acc, new_done), {k: trace[k] for k in record}
 
-        (_, _, acc, _), actions = jax.lax.scan(
+        (_, _, acc, _), traces = jax.lax.scan(
             body, (state, pstate, acc, done0), jnp.arange(max_steps, dtype=jnp.int32)
         )
-        return (acc, actions) if record_actions else acc
+        return (acc, traces) if record else acc
 
     return episode
 
@@ -165,13 +174,13 @@ class _Layout:
             )
         )
 
-    def wrap(self, episode: Callable, record_actions: bool) -> Callable:
+    def wrap(self, episode: Callable, record: tuple[str, ...]) -> Callable:
         """The jitted episode function, `shard_map`ped so every device runs the same program on
         its slice of envs. One device goes through the same path, so a run on D devices is the
         same per-device program as a run on one device with 1/D of the batch."""
         out_specs: Any = P("env")
-        if record_actions:
-            out_specs = (P("env"), P(None, "env"))
+        if record:
+            out_specs = (P("env"), {k: P(None, "env") for k in record})
         return jax.jit(
             jax.shard_map(
                 episode,
@@ -245,6 +254,143 @@ def _fit_batch(per_device: int, need: int | None, free: int | None, fraction: fl
     return max(1, target // 64 * 64 if target >= 64 else target)
 
 
+class EpisodeRunner:
+    """Rolls out seeds in chunks of `n_envs`, compiled once and kept across `run` calls.
+
+    A training loop evaluates new params on held-out seeds without recompiling. The loop runs
+    on the physics backend's devices (the host CPU for `c`, so a GPU machine does not bounce
+    every control step between device and host; every GPU for `mjx`/`warp`). `n_envs` is
+    rounded up to a multiple of the device count (and to two envs per device); if the compiled
+    batch would need more than
+    `memory_fraction` of a device's free memory, it is shrunk (and recompiled) to fit, and
+    `RunTiming.n_envs` says what ran. `devices` overrides the backend's choice (e.g. a subset
+    of the GPUs).
+    """
+
+    def __init__(
+        self,
+        scene: Scene,
+        policy: Policy,
+        *,
+        n_envs: int,
+        max_steps: int,
+        record: tuple[str, ...] = (),
+        memory_fraction: float = 0.85,
+        devices: Sequence[jax.Device] | None = None,
+    ) -> None:
+        check_counts(n_envs, 1, max_steps)
+        self.scene = scene
+        self.layout = _Layout(tuple(devices or scene.backend.devices()))
+        self.per_device = -(-n_envs // len(self.layout.devices))
+        limit = scene.backend.max_batch
+        # XLA compiles a batch of one as scalar code whose fused arithmetic (FMA contraction)
+        # can differ in the last bit from batched code: two envs per device keep seed s's
+        # episode identical whether it runs alone or in a batch.
+        self.per_device = max(self.per_device, min(2, limit or 2))
+        if limit is not None and self.per_device > limit:
+            raise ConfigError(
+                f"{self.per_device} envs per device exceed the {scene.backend.name} backend's "
+                f"buffers (sized for batch_size={limit}); build the scene with a larger batch_size"
+            )
+        self.max_steps, self.record, self.memory_fraction = max_steps, record, memory_fraction
+        self._fn = self.layout.wrap(
+            make_episode_fn(scene, policy, max_steps, record=record), record
+        )
+        self._compiled: Any = None
+        self._factor_fn: Callable | None = None
+        self._need: int | None = None
+
+    @property
+    def n_envs(self) -> int:
+        """The batch that runs (final once compiled: it may shrink to fit in memory)."""
+        return self.per_device * len(self.layout.devices)
+
+    def _compile(self, params: Any) -> float:
+        layout, t0 = self.layout, time.perf_counter()
+        compiled = self._fn.lower(params, layout.put_envs(np.zeros(self.n_envs, np.int32)))
+        compiled = compiled.compile()
+        need, free = _peak_bytes(compiled), free_device_bytes(layout.devices[0])
+        fitted = _fit_batch(self.per_device, need, free, self.memory_fraction)
+        if fitted != self.per_device:
+            self.per_device = fitted
+            compiled = self._fn.lower(params, layout.put_envs(np.zeros(self.n_envs, np.int32)))
+            compiled = compiled.compile()
+            need = _peak_bytes(compiled)
+        self.scene.backend.warm_up()
+        factor_fn = make_factor_fn(self.scene, layout.devices)
+        if factor_fn is not None:  # compile it too, before timing the chunks
+            jax.block_until_ready(factor_fn(layout.put_envs(np.zeros(self.n_envs, np.int32))))
+        self._compiled, self._factor_fn, self._need = compiled, factor_fn, need
+        return time.perf_counter() - t0
+
+    def run(
+        self,
+        params: Any,
+        seeds: np.ndarray,
+        on_chunk: Callable[[int, int], None] | None = None,
+        until: Callable[[dict[str, Any]], bool] | None = None,
+    ) -> tuple[dict[str, Any], RunTiming]:
+        """Roll out every seed; return per-seed numpy arrays and timings (`compile_s` is 0 once
+        compiled).
+
+        The arrays are the `EpisodeArrays` fields by name, per factor the scene declares (see
+        `make_factor_fn`) its values under `FACTOR_PREFIX + name`, and the recorded traces as
+        `(n_seeds, max_steps, ...)`.
+
+        `on_chunk(done_episodes, total_episodes)` is called once compiled and after each chunk.
+        `until(arrays_so_far)`, if given, is called after each chunk; when it returns True no
+        further chunk runs and only the seeds run so far are returned. The chunk size is fixed
+        before any episode runs (it depends on the devices and memory, never on outcomes).
+        """
+        seeds = np.asarray(seeds, dtype=np.int64)
+        check_counts(self.per_device, len(seeds), self.max_steps)
+        if seeds.min() < 0 or seeds.max() >= 2**31:
+            raise ConfigError(
+                f"seeds must lie in [0, 2**31), got range [{seeds.min()}, {seeds.max()}]"
+            )
+        layout = self.layout
+        params = layout.put_replicated(params) if params is not None else None
+        compile_s = self._compile(params) if self._compiled is None else 0.0
+        n_envs = self.n_envs
+        n_chunks = -(-len(seeds) // n_envs)
+        padded = np.concatenate([seeds, seeds[-1] + 1 + np.arange(n_chunks * n_envs - len(seeds))])
+        padded = np.minimum(padded, 2**31 - 1).astype(np.int32)
+        if on_chunk is not None:
+            on_chunk(0, len(seeds))
+
+        outs: list[dict[str, Any]] = []
+        chunk_s: list[float] = []
+        merged: dict[str, Any] = {}
+        for c in range(n_chunks):
+            t = time.perf_counter()
+            chunk = layout.put_envs(padded[c * n_envs : (c + 1) * n_envs])
+            out = layout.get(self._compiled(params, chunk))
+            factors = {} if self._factor_fn is None else layout.get(self._factor_fn(chunk))
+            chunk_s.append(time.perf_counter() - t)
+            acc, traces = out if self.record else (out, {})
+            row = {f.name: np.asarray(getattr(acc, f.name)) for f in dataclasses.fields(acc)}
+            row.update({FACTOR_PREFIX + k: np.asarray(v) for k, v in factors.items()})
+            row.update({k: np.swapaxes(np.asarray(v), 0, 1) for k, v in traces.items()})
+            outs.append(row)
+            done = min((c + 1) * n_envs, len(seeds))
+            if on_chunk is not None:
+                on_chunk(done, len(seeds))
+            if until is not None or c == n_chunks - 1:
+                merged = {k: np.concatenate([o[k] for o in outs])[:done] for k in outs[0]}
+                if until is not None and until(merged):
+                    break
+        timing = RunTiming(
+            compile_s=compile_s,
+            run_s=float(sum(chunk_s)),
+            chunk_s=tuple(chunk_s),
+            scan_steps=self.max_steps,
+            n_envs=n_envs,
+            n_devices=len(layout.devices),
+            bytes_per_device=self._need,
+        )
+        return merged, timing
+
+
 def run_seeds(
     scene: Scene,
     policy: Policy,
@@ -254,102 +400,20 @@ def run_seeds(
     n_envs: int,
     max_steps: int,
     on_chunk: Callable[[int, int], None] | None = None,
-    record_actions: bool = False,
+    record: tuple[str, ...] = (),
     memory_fraction: float = 0.85,
     devices: Sequence[jax.Device] | None = None,
     until: Callable[[dict[str, Any]], bool] | None = None,
 ) -> tuple[dict[str, Any], RunTiming]:
-    """Roll out every seed in chunks of `n_envs`; return per-seed numpy arrays and timings.
-
-    The arrays are the `EpisodeArrays` fields by name and, per factor the scene declares (see
-    `make_factor_fn`), its values under `FACTOR_PREFIX + name`.
-
-    The loop runs on the physics backend's devices (the host CPU for `c`, so a GPU machine
-    does not bounce every control step between device and host; every GPU for `mjx`/`warp`).
-    `n_envs` is rounded up to a multiple of the device count (and to two envs per device); if
-    the compiled batch would need more than `memory_fraction` of a device's free memory, it is
-    shrunk (and recompiled) to fit, and `RunTiming.n_envs` says what ran.
-    With `record_actions`, the arrays include `actions`: (n_seeds, max_steps, action_size).
-
-    `devices` overrides the backend's choice (e.g. a subset of the GPUs).
-
-    `on_chunk(done_episodes, total_episodes)` is called once compiled and after each chunk.
-    `until(arrays_so_far)`, if given, is called after each chunk; when it returns True no
-    further chunk runs and only the seeds run so far are returned. The chunk size is fixed
-    before any episode runs (it depends on the devices and memory, never on outcomes).
-    """
-    seeds = np.asarray(seeds, dtype=np.int64)
+    """Roll out every seed once, in chunks of `min(n_envs, len(seeds))` (see `EpisodeRunner`)."""
     check_counts(n_envs, len(seeds), max_steps)
-    if seeds.min() < 0 or seeds.max() >= 2**31:
-        raise ConfigError(f"seeds must lie in [0, 2**31), got range [{seeds.min()}, {seeds.max()}]")
-    layout = _Layout(tuple(devices or scene.backend.devices()))
-    n_dev = len(layout.devices)
-    per_device = -(-min(n_envs, len(seeds)) // n_dev)
-    limit = scene.backend.max_batch
-    # XLA compiles a batch of one as scalar code whose fused arithmetic (FMA contraction) can
-    # differ in the last bit from batched code: two envs per device keep seed s's episode
-    # identical whether it runs alone or in a batch.
-    per_device = max(per_device, min(2, limit or 2))
-    if limit is not None and per_device > limit:
-        raise ConfigError(
-            f"{per_device} envs per device exceed the {scene.backend.name} backend's buffers "
-            f"(sized for batch_size={limit}); build the scene with a larger batch_size"
-        )
-    fn = layout.wrap(
-        make_episode_fn(scene, policy, max_steps, record_actions=record_actions), record_actions
+    runner = EpisodeRunner(
+        scene,
+        policy,
+        n_envs=min(n_envs, len(seeds)),
+        max_steps=max_steps,
+        record=record,
+        memory_fraction=memory_fraction,
+        devices=devices,
     )
-    params = layout.put_replicated(params) if params is not None else None
-
-    t0 = time.perf_counter()
-    compiled = fn.lower(params, layout.put_envs(np.zeros(per_device * n_dev, np.int32))).compile()
-    need, free = _peak_bytes(compiled), free_device_bytes(layout.devices[0])
-    fitted = _fit_batch(per_device, need, free, memory_fraction)
-    if fitted != per_device:
-        per_device = fitted
-        compiled = fn.lower(params, layout.put_envs(np.zeros(per_device * n_dev, np.int32)))
-        compiled = compiled.compile()
-        need = _peak_bytes(compiled)
-    n_envs = per_device * n_dev
-    scene.backend.warm_up()
-    factor_fn = make_factor_fn(scene, layout.devices)
-    if factor_fn is not None:  # compile it too, before timing the chunks
-        jax.block_until_ready(factor_fn(layout.put_envs(np.zeros(n_envs, np.int32))))
-    compile_s = time.perf_counter() - t0
-    n_chunks = -(-len(seeds) // n_envs)
-    padded = np.concatenate([seeds, seeds[-1] + 1 + np.arange(n_chunks * n_envs - len(seeds))])
-    padded = np.minimum(padded, 2**31 - 1).astype(np.int32)
-    if on_chunk is not None:
-        on_chunk(0, len(seeds))
-
-    outs: list[dict[str, Any]] = []
-    chunk_s: list[float] = []
-    merged: dict[str, Any] = {}
-    for c in range(n_chunks):
-        t = time.perf_counter()
-        chunk = layout.put_envs(padded[c * n_envs : (c + 1) * n_envs])
-        out = layout.get(compiled(params, chunk))
-        factors = {} if factor_fn is None else layout.get(factor_fn(chunk))
-        chunk_s.append(time.perf_counter() - t)
-        acc, actions = out if record_actions else (out, None)
-        row = {f.name: np.asarray(getattr(acc, f.name)) for f in dataclasses.fields(acc)}
-        row.update({FACTOR_PREFIX + k: np.asarray(v) for k, v in factors.items()})
-        if actions is not None:
-            row["actions"] = np.swapaxes(np.asarray(actions), 0, 1)
-        outs.append(row)
-        done = min((c + 1) * n_envs, len(seeds))
-        if on_chunk is not None:
-            on_chunk(done, len(seeds))
-        if until is not None or c == n_chunks - 1:
-            merged = {k: np.concatenate([o[k] for o in outs])[:done] for k in outs[0]}
-            if until is not None and until(merged):
-                break
-    timing = RunTiming(
-        compile_s=compile_s,
-        run_s=float(sum(chunk_s)),
-        chunk_s=tuple(chunk_s),
-        scan_steps=max_steps,
-        n_envs=n_envs,
-        n_devices=n_dev,
-        bytes_per_device=need,
-    )
-    return merged, timing
+    return runner.run(params, seeds, on_chunk, until)

@@ -122,7 +122,10 @@ def test_list(monkeypatch, capsys):
             "scene 'so101_box' requires robot 'so101', not 'mjcf:arm.xml'",
         ),
         (["--scene", "so101_box", "--opt", "tube_diameter=0.03"], "must be < hole_diameter"),
-        (["--policy", "nope"], "unknown policy 'nope'; valid: random, scripted, zero"),
+        (
+            ["--policy", "nope"],
+            "unknown policy 'nope'; valid: mlp, mlp-sample, random, scripted, zero",
+        ),
         (["--robot", "ur5"], "unknown robot 'ur5'; valid: so101"),
         (["--backend", "gpu"], "unknown backend 'gpu'; valid: auto, mjx, warp, c"),
         (["--opt", "goal_radiuss=0.1"], "unknown option for TabletopPushOptions 'goal_radiuss'"),

@@ -1,17 +1,20 @@
 """Policies and the `POLICIES` registry.
 
 A registry entry is a factory `(scene, arg) -> Policy`; `arg` is the text after `name:` on the
-command line (e.g. a checkpoint path), or None. Factories read what they need from the scene
-(action size and bounds, or the scene's own scripted expert) without importing scenes.
+command line (e.g. the checkpoint directory of `mlp:DIR`), or None. Factories read what they
+need from the scene (action size and bounds, or the scene's own scripted expert) without
+importing scenes.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 from openral_mjx.errors import ConfigError
 from openral_mjx.policies.base import Policy
+from openral_mjx.policies.mlp import check_compatible, load_mlp, mlp_policy
 from openral_mjx.policies.simple import random_policy, zero_policy
 from openral_mjx.registry import Registry
 
@@ -40,6 +43,26 @@ def _random(scene: Any, arg: str | None) -> Policy:
 def _scripted(scene: Any, arg: str | None) -> Policy:
     _no_arg("scripted", arg)
     return scene.scripted_policy()
+
+
+def _load_mlp_for(name: str, scene: Any, arg: str | None, deterministic: bool) -> Policy:
+    if not arg:
+        raise ConfigError(f"policy {name!r} needs a checkpoint directory: --policy {name}:DIR")
+    config, params = load_mlp(Path(arg))
+    check_compatible(config, scene, f"mlp checkpoint {arg!r}")
+    return mlp_policy(config, params, deterministic=deterministic)
+
+
+@POLICIES.register("mlp")
+def _mlp(scene: Any, arg: str | None) -> Policy:
+    """A saved flax Gaussian MLP, acting with its mean."""
+    return _load_mlp_for("mlp", scene, arg, deterministic=True)
+
+
+@POLICIES.register("mlp-sample")
+def _mlp_sample(scene: Any, arg: str | None) -> Policy:
+    """A saved flax Gaussian MLP, sampling its actions (seeded per episode)."""
+    return _load_mlp_for("mlp-sample", scene, arg, deterministic=False)
 
 
 def make_policy(spec: str, scene: Any) -> Policy:

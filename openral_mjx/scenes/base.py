@@ -95,6 +95,14 @@ class Scene(abc.ABC):
         """The compiled scene (as the physics backend sees it, minus backend-private additions)."""
         return self.backend.mj_model
 
+    def action_obs_index(self) -> tuple[int, ...] | None:
+        """For each actuator, the index in `obs` of the joint position it drives, or None.
+
+        Lets a learned policy act relative to the current joint positions (position servos:
+        an action is a target near where the joint is); None where no such reading exists.
+        """
+        return None
+
     def action_bounds(self) -> tuple[jax.Array, jax.Array]:
         """Per-actuator (low, high) control limits."""
         r = jnp.asarray(self.mj_model.actuator_ctrlrange, dtype=jnp.float32)

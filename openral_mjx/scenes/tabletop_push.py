@@ -258,7 +258,10 @@ class TabletopPush(Scene):
         yaw = u(kyaw, (), minval=-jnp.pi, maxval=jnp.pi)
         theta = u(kth, (), minval=-jnp.pi, maxval=jnp.pi)
         dist = u(kr, (), minval=o.goal_distance[0], maxval=o.goal_distance[1])
-        offset = dist * jnp.stack([jnp.cos(theta), jnp.sin(theta)])
+        # Computed once: the goal feeds both `info` and the observation, and XLA recomputed
+        # this product inside both fusions, rounding differently at some batch sizes (the
+        # goal in the observation then differed in the last bit from one batch size to another).
+        offset = jax.lax.optimization_barrier(dist * jnp.stack([jnp.cos(theta), jnp.sin(theta)]))
         lo = jnp.array([o.goal_region_x[0], o.goal_region_y[0]])
         hi = jnp.array([o.goal_region_x[1], o.goal_region_y[1]])
         inside = jnp.all((cube_xy + offset >= lo) & (cube_xy + offset <= hi))
@@ -362,15 +365,17 @@ class TabletopPush(Scene):
 
         return ee_pose
 
+    def action_obs_index(self) -> tuple[int, ...]:
+        start, _ = self._layout["joint_pos"]
+        return tuple(start + int(i) for i in actuator_joints(self.mj_model, self.robot_joint_ids))
+
     def scripted_policy(self) -> Policy:
         """The scene's expert: push along the cube->goal line (see `push_expert`)."""
-        m = self.mj_model
-        actuator_joint = actuator_joints(m, self.robot_joint_ids)
         low, high = self.action_bounds()
         return push_expert(
             self.obs_layout,
             self.forward_kinematics(),
-            actuator_joint,
+            actuator_joints(self.mj_model, self.robot_joint_ids),
             low,
             high,
             table_z=self.options.table_height,

@@ -1,0 +1,466 @@
+"""`python -m openral_mjx.finetune`: behaviour cloning (`bc`) and PPO finetuning (`ppo`).
+
+    python -m openral_mjx.finetune bc --scene tabletop_push --out runs/bc
+    python -m openral_mjx.finetune ppo --scene tabletop_push --init runs/bc --out runs/ppo
+    python -m openral_mjx.eval --policy mlp:runs/ppo/best --seed 2000000000 --n-episodes 4096
+
+Both write `mlp` policy checkpoints that `--policy mlp:DIR` evaluates. Progress goes to
+stderr; the summary to stdout.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import jax
+import numpy as np
+import tyro
+
+from openral_mjx.cli_common import command_line, guarded
+from openral_mjx.compile_cache import enable_compilation_cache
+from openral_mjx.errors import ConfigError
+from openral_mjx.options import load_yaml, parse_overrides, to_dict
+from openral_mjx.physics import PhysicsSettings, resolve_backend_name
+from openral_mjx.policies.mlp import MlpConfig, check_compatible, init_params, load_mlp, save_mlp
+from openral_mjx.scenes import SCENES, Scene, make_scene
+from openral_mjx.schema import write_json_atomic
+from openral_mjx.training.bc import BCConfig, collect_demos, fit, policy_config
+from openral_mjx.training.curves import can_plot, plot_learning_curve
+from openral_mjx.training.evaluation import TEST_SEEDS, VALIDATION_SEEDS, HeldOutEvaluator
+from openral_mjx.training.ppo import PPOConfig
+from openral_mjx.training.run_dir import RunDir
+from openral_mjx.training.session import PPOSession, Schedule
+
+
+@dataclasses.dataclass
+class SceneArgs:
+    scene: str = "tabletop_push"
+    """Scene ID."""
+    backend: str = "auto"
+    """Physics backend: auto (warp with warp-lang on a CUDA GPU, mjx on another accelerator,
+    else c), mjx, warp or c. Training runs on the backend's first device."""
+    config: Path | None = None
+    """YAML file of scene options (see configs/)."""
+    opt: tuple[str, ...] = ()
+    """Scene option overrides, KEY=VALUE (after --config)."""
+    threads: int | None = None
+    """Threads of the C backend (default: all cores)."""
+    compile_cache: bool = True
+    """Use JAX's persistent compilation cache (~/.cache/openral_mjx/jax)."""
+
+
+@dataclasses.dataclass
+class BcArgs(SceneArgs):
+    """Behaviour cloning of the scene's scripted expert into an `mlp` policy checkpoint."""
+
+    out: Path = Path("runs/bc")
+    """Checkpoint directory to write (an `mlp` policy, plus bc.json)."""
+    n_demos: int = 1024
+    """Expert episodes to roll out (seeds 0 .. n_demos-1); the successful ones are kept."""
+    n_envs: int = 1024
+    """Envs rolled out in parallel for the demonstrations and the evaluation."""
+    max_steps: int | None = None
+    """Control steps per episode (default: the scene's)."""
+    hidden: tuple[int, ...] = (256, 256, 256)
+    """Hidden layer sizes of the policy MLP."""
+    activation: str = "silu"
+    """silu, tanh or relu."""
+    epochs: int = 30
+    batch_size: int = 4096
+    lr: float = 1e-3
+    """Adam learning rate (cosine-decayed to 0)."""
+    min_std: float = 0.1
+    """Floor of the Gaussian's std, in units of each joint's typical expert action."""
+    seed: int = 0
+    """Network initialisation and minibatch order."""
+    eval_episodes: int = 1024
+    """Held-out validation episodes to evaluate the clone on (0: skip)."""
+
+
+@dataclasses.dataclass
+class CurveArgs:
+    """(Re)draw a PPO run's learning curve from its metrics log."""
+
+    out: Path = Path("runs/ppo")
+    """Run directory."""
+
+
+@dataclasses.dataclass
+class PpoArgs(SceneArgs):
+    """PPO from an `mlp` checkpoint (or from scratch), with held-out evaluation and checkpoints.
+
+    With --resume, the run's settings come from OUT/run.json; only --num-timesteps (to extend
+    the run) and --threads are taken from the command line.
+    """
+
+    out: Path = Path("runs/ppo")
+    """Run directory (run.json, metrics.jsonl, learning_curve.png, state/, best/, final/)."""
+    init: Path | None = None
+    """`mlp` checkpoint to start from (e.g. the bc output); none: a fresh network."""
+    resume: bool = False
+    """Continue the run in --out from its newest checkpoint."""
+    num_timesteps: int | None = None
+    """Environment steps to train for, rounded up to whole updates (default 20M)."""
+    n_envs: int = 4096
+    unroll_length: int = 16
+    """Control steps per env per update."""
+    minibatches: int = 8
+    epochs: int = 4
+    """Passes over each update's batch."""
+    actor_lr: float = 3e-5
+    """Initial actor learning rate (then adapted to --target-kl)."""
+    critic_lr: float = 3e-4
+    target_kl: float = 0.01
+    """KL divergence per update the actor learning rate adapts to (0: fixed rate)."""
+    gamma: float = 0.99
+    gae_lambda: float = 0.95
+    clip: float = 0.2
+    entropy: float = 0.0
+    critic_warmup: int = 5
+    """Updates that train only the critic before the actor moves."""
+    reward_scale: float = 1.0
+    """Factor on the scene's reward in training."""
+    success_bonus: float = 10.0
+    """Training reward added on the step an episode succeeds (the scene's reward is unchanged)."""
+    max_steps: int | None = None
+    """Episode time limit in control steps (default: the scene's)."""
+    update_normalizer: bool | None = None
+    """Keep updating the observation statistics (default: only when training from scratch)."""
+    seed: int = 0
+    eval_every: int = 25
+    """Evaluate on held-out validation seeds every this many updates (and at the end)."""
+    eval_episodes: int = 1024
+    eval_n_envs: int = 1024
+    checkpoint_every: int = 50
+    """Checkpoint the full training state every this many updates (and at the end)."""
+    log_every: int = 1
+    """Print a progress line every this many updates."""
+    hidden: tuple[int, ...] = (256, 256, 256)
+    """From scratch only: hidden layer sizes."""
+    activation: str = "silu"
+    """From scratch only: silu, tanh or relu."""
+
+
+DEFAULT_TIMESTEPS = 20_000_000
+
+
+def _log(line: str) -> None:
+    """A progress line on stderr (one line each, never wrapped: logs stay greppable)."""
+    print(line, file=sys.stderr, flush=True)
+
+
+def _scene_options(args: SceneArgs) -> dict[str, Any]:
+    options: dict[str, Any] = {}
+    if args.config is not None:
+        options.update(load_yaml(args.config))
+    options.update(parse_overrides(args.opt))
+    return options
+
+
+def _build_scene(
+    name: str, options: dict[str, Any], backend: str, threads: int | None, batch: int
+) -> Scene:
+    """The scene on `backend`, its buffers (`warp`) sized for `batch` envs per device."""
+    SCENES.get(name)
+    settings = PhysicsSettings(threads=threads, batch_size=batch)
+    return make_scene(name, options, backend=backend, settings=settings)
+
+
+def _fmt_steps(n: float) -> str:
+    return f"{n / 1e6:.2f}M" if n >= 1e6 else f"{n / 1e3:.0f}k"
+
+
+# ---- bc ------------------------------------------------------------------------------------
+
+
+def run_bc(args: BcArgs) -> int:
+    for name in ("n_demos", "n_envs"):
+        if getattr(args, name) < 1:
+            raise ConfigError(f"{name} must be a positive integer, got {getattr(args, name)}")
+    if args.eval_episodes < 0:
+        raise ConfigError(f"eval_episodes must be >= 0, got {args.eval_episodes}")
+    if args.out.exists() and not args.out.is_dir():
+        raise ConfigError(f"--out {str(args.out)!r} is a file; give a directory")
+    config = BCConfig(
+        hidden=args.hidden,
+        activation=args.activation,
+        epochs=args.epochs,
+        batch_size=args.batch_size,
+        learning_rate=args.lr,
+        min_std=args.min_std,
+        seed=args.seed,
+    )
+    backend = resolve_backend_name(args.backend)
+    if args.compile_cache:
+        enable_compilation_cache()
+    scene = _build_scene(args.scene, _scene_options(args), backend, args.threads, args.n_envs)
+    steps = args.max_steps or scene.max_steps
+    t0 = time.perf_counter()
+    _log(f"demonstrations: {args.n_demos} expert episodes on {backend} ...")
+    demos = collect_demos(scene, n_episodes=args.n_demos, n_envs=args.n_envs, max_steps=steps)
+    demo_s = time.perf_counter() - t0
+    _log(
+        f"demonstrations: {demos.n_successful}/{demos.n_episodes} successful, "
+        f"{len(demos.obs):,} transitions, {demo_s:.1f} s ({demos.env_steps_per_s:,.0f} steps/s)"
+    )
+    mlp_config = policy_config(scene, demos, config)
+
+    def on_epoch(epoch: int, loss: float) -> None:
+        _log(f"bc epoch {epoch}/{config.epochs}: loss {loss:.4f}")
+
+    t1 = time.perf_counter()
+    params, history = fit(mlp_config, demos, config, on_epoch)
+    fit_s = time.perf_counter() - t1
+    mlp_config = dataclasses.replace(
+        mlp_config,
+        metadata={
+            **mlp_config.metadata,
+            "trained": {"method": "bc", "demos": demos.n_successful, "final_loss": history[-1]},
+        },
+    )
+    save_mlp(args.out, mlp_config, jax.device_get(params))
+    summary: dict[str, Any] = {
+        "scene": scene.name,
+        "backend": backend,
+        "demo_episodes": demos.n_episodes,
+        "demo_successful": demos.n_successful,
+        "transitions": len(demos.obs),
+        "demo_s": demo_s,
+        "fit_s": fit_s,
+        "losses": history,
+        "command": command_line("openral_mjx.finetune", ["bc", *_bc_argv(args, backend)]),
+    }
+    line = ""
+    if args.eval_episodes:
+        evaluator = HeldOutEvaluator(
+            scene, mlp_config, n_episodes=args.eval_episodes, n_envs=args.n_envs, max_steps=steps
+        )
+        r = evaluator(params)
+        summary["validation"] = {**dataclasses.asdict(r), "first_seed": VALIDATION_SEEDS}
+        line = (
+            f", validation success {100 * r.success_rate:.1f}% "
+            f"[{100 * r.ci_low:.1f}, {100 * r.ci_high:.1f}] ({r.n_episodes} held-out seeds)"
+        )
+    write_json_atomic(args.out / "bc.json", summary)
+    n = len(demos.obs)
+    print(f"bc on {scene.name}/{backend}: {n:,} transitions, loss {history[-1]:.4f}{line}")
+    print(f"policy: {args.out} (evaluate with --policy mlp:{args.out})")
+    return 0
+
+
+def _bc_argv(args: BcArgs, backend: str) -> list[str]:
+    argv = ["--scene", args.scene, "--backend", backend, "--out", str(args.out)]
+    for flag in ("n_demos", "n_envs", "epochs", "batch_size", "lr", "min_std", "seed"):
+        argv += [f"--{flag.replace('_', '-')}", str(getattr(args, flag))]
+    argv += ["--hidden", *map(str, args.hidden), "--activation", args.activation]
+    if args.max_steps is not None:
+        argv += ["--max-steps", str(args.max_steps)]
+    if args.config is not None:
+        argv += ["--config", str(args.config)]
+    if args.opt:
+        argv += ["--opt", *args.opt]
+    return argv
+
+
+# ---- ppo -----------------------------------------------------------------------------------
+
+
+def _scratch_config(scene: Scene, args: PpoArgs) -> MlpConfig:
+    """A fresh policy: actions relative to the joints, `u` = 5% of each control range."""
+    low, high = (np.asarray(x) for x in scene.action_bounds())
+    return MlpConfig(
+        obs_size=scene.observation_size,
+        action_size=scene.action_size,
+        action_offset=(0.0,) * scene.action_size,
+        action_scale=tuple(float(x) for x in 0.05 * (high - low)),
+        action_base_index=scene.action_obs_index(),
+        hidden=args.hidden,
+        activation=args.activation,
+        metadata={
+            "scene": scene.name,
+            "robot": scene.robot_name,
+            "scene_options": to_dict(scene.options),
+        },
+    )
+
+
+def _ppo_config(args: PpoArgs, scene: Scene) -> PPOConfig:
+    normalizer = args.init is None if args.update_normalizer is None else args.update_normalizer
+    return PPOConfig(
+        n_envs=args.n_envs,
+        unroll_length=args.unroll_length,
+        n_minibatches=args.minibatches,
+        n_epochs=args.epochs,
+        actor_lr=args.actor_lr,
+        critic_lr=args.critic_lr,
+        target_kl=args.target_kl,
+        gamma=args.gamma,
+        gae_lambda=args.gae_lambda,
+        clip_eps=args.clip,
+        entropy_coef=args.entropy,
+        critic_warmup=args.critic_warmup,
+        reward_scale=args.reward_scale,
+        success_bonus=args.success_bonus,
+        max_steps=args.max_steps or scene.max_steps,
+        update_normalizer=normalizer,
+        seed=args.seed,
+    )
+
+
+def _plot(run_dir: RunDir, settings: dict[str, Any]) -> None:
+    """Draw the run's learning curve from its metrics log (training statistics start once every
+    env has run a full episode)."""
+    title = (
+        f"PPO on {settings['scene']} ({settings['backend']}), from {settings['init'] or 'scratch'}"
+    )
+    warmup = settings["ppo"]["max_steps"] * settings["ppo"]["n_envs"]
+    plot_learning_curve(run_dir.read_metrics(), run_dir.curve_path, title, warmup)
+
+
+class _Progress:
+    """Prints the run's progress lines to stderr and redraws the learning curve after evals."""
+
+    def __init__(self, run_dir: RunDir, settings: dict[str, Any], num_updates: int) -> None:
+        self.dir, self.settings, self.n = run_dir, settings, num_updates
+        self.log_every = int(settings["log_every"])
+
+    def __call__(self, row: dict[str, Any]) -> None:
+        kind, u = row["kind"], row["update"]
+        if kind == "compiled":
+            _log(f"compiled the update in {row['compile_s']:.1f} s; starting at update {u}")
+        elif kind == "train" and (u % self.log_every == 0 or u == self.n):
+            rate = row["train_success_rate"]
+            success = "-" if rate is None else f"{100 * rate:.1f}%"
+            _log(
+                f"update {u}/{self.n}  steps {_fmt_steps(row['env_steps'])}  "
+                f"train success {success} ({row['episodes']} episodes)  "
+                f"return {row['episode_return']:.2f}  reward {row['reward']:.4f}  "
+                f"{row['steps_per_s']:,.0f} steps/s  kl {row['approx_kl']:.4f}  "
+                f"lr {row['actor_lr']:.1e}"
+            )
+        elif kind == "eval":
+            _log(
+                f"eval @ update {u} ({_fmt_steps(row['env_steps'])} steps): success "
+                f"{100 * row['success_rate']:.1f}% [{100 * row['ci_low']:.1f}, "
+                f"{100 * row['ci_high']:.1f}] on {row['n_episodes']} validation seeds"
+                + ("  (best)" if row["best"] else "")
+            )
+            self.plot()
+
+    def plot(self) -> None:
+        if can_plot():
+            _plot(self.dir, self.settings)
+
+
+def run_ppo(args: PpoArgs) -> int:
+    run_dir = RunDir(args.out)
+    if args.resume:
+        settings = run_dir.load_settings()
+        if args.num_timesteps is not None:
+            settings["num_timesteps"] = args.num_timesteps
+    else:
+        settings = {
+            "scene": args.scene,
+            "scene_options": _scene_options(args),
+            "backend": resolve_backend_name(args.backend),
+            "init": None if args.init is None else str(args.init),
+            "num_timesteps": args.num_timesteps or DEFAULT_TIMESTEPS,
+            "schedule": {
+                "eval_every": args.eval_every,
+                "checkpoint_every": args.checkpoint_every,
+                "eval_episodes": args.eval_episodes,
+                "eval_n_envs": args.eval_n_envs,
+            },
+            "log_every": args.log_every,
+        }
+    if int(settings["num_timesteps"]) < 1:
+        n = settings["num_timesteps"]
+        raise ConfigError(f"num_timesteps must be a positive integer, got {n}")
+    if args.compile_cache:
+        enable_compilation_cache()
+    n_envs = settings["ppo"]["n_envs"] if args.resume else args.n_envs
+    batch = max(n_envs, settings["schedule"]["eval_n_envs"])
+    scene = _build_scene(
+        settings["scene"], settings["scene_options"], settings["backend"], args.threads, batch
+    )
+    init_policy = None
+    if args.resume:
+        fields = {**settings["ppo"], "critic_hidden": tuple(settings["ppo"]["critic_hidden"])}
+        ppo_config = PPOConfig(**fields)
+        mlp_config = MlpConfig.from_json(settings["mlp"])
+    else:
+        ppo_config = _ppo_config(args, scene)
+        if args.init is not None:
+            mlp_config, init_policy = load_mlp(args.init)
+            check_compatible(mlp_config, scene, f"--init {str(args.init)!r}")
+        else:
+            mlp_config = _scratch_config(scene, args)
+            init_policy = init_params(mlp_config, jax.random.PRNGKey(args.seed + 1))
+    num_updates = -(-int(settings["num_timesteps"]) // ppo_config.steps_per_update)
+    schedule = Schedule(num_updates=num_updates, **settings["schedule"])
+    if args.resume:
+        run_dir.save_settings(settings)
+    else:
+        settings["ppo"] = dataclasses.asdict(ppo_config)
+        settings["mlp"] = mlp_config.to_json()
+        settings["command"] = command_line("openral_mjx.finetune", ["ppo", *sys.argv[2:]])
+        run_dir.create(settings)
+
+    progress = _Progress(run_dir, settings, num_updates)
+    if not can_plot():
+        _log(
+            "matplotlib is not installed: no learning curve (pip install 'openral_mjx[train]', "
+            f"then python -m openral_mjx.finetune curve --out {run_dir.path})"
+        )
+    _log(
+        f"ppo on {scene.name}/{settings['backend']}: {num_updates} updates x "
+        f"{ppo_config.steps_per_update:,} steps ({ppo_config.n_envs} envs x "
+        f"{ppo_config.unroll_length}), from {settings['init'] or 'scratch'}"
+    )
+    session = PPOSession(scene, run_dir, mlp_config, ppo_config, schedule, on_row=progress)
+    summary = session.run(init_policy, resume=args.resume)
+    progress.plot()
+    init = summary["init"]
+    start = "" if init is None else f"{100 * init['success_rate']:.1f}% -> "
+    rate = summary["steps_per_s"]
+    speed = "" if rate is None else f" ({rate:,.0f} steps/s)"
+    print(
+        f"ppo on {scene.name}/{settings['backend']}: validation success {start}"
+        f"{100 * summary['final_success_rate']:.1f}% (best "
+        f"{100 * summary['best_success_rate']:.1f}% at update {summary['best_update']}), "
+        f"{_fmt_steps(summary['env_steps'])} steps, {summary['wall_s']:.0f} s training{speed}, "
+        f"{summary['elapsed_s']:.0f} s in all"
+    )
+    print(f"policies: {run_dir.best} (best), {run_dir.final} (last)")
+    curve = f"; curve: {run_dir.curve_path}" if can_plot() else ""
+    print(f"metrics: {run_dir.metrics_path}{curve}")
+    print(
+        f"test: python -m openral_mjx.eval --scene {scene.name} --policy mlp:{run_dir.best} "
+        f"--seed {TEST_SEEDS} --n-episodes 4096"
+    )
+    return 0
+
+
+def run_curve(args: CurveArgs) -> int:
+    if not can_plot():
+        raise ConfigError("drawing the curve needs matplotlib: pip install 'openral_mjx[train]'")
+    run_dir = RunDir(args.out)
+    _plot(run_dir, run_dir.load_settings())
+    print(f"curve: {run_dir.curve_path}")
+    return 0
+
+
+def main() -> None:
+    args = tyro.extras.subcommand_cli_from_dict(
+        {"bc": BcArgs, "ppo": PpoArgs, "curve": CurveArgs}, prog="python -m openral_mjx.finetune"
+    )
+    run = {BcArgs: run_bc, PpoArgs: run_ppo, CurveArgs: run_curve}[type(args)]
+    raise SystemExit(guarded(lambda: run(args)))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,4 +1,5 @@
-"""JAX's persistent compilation cache, on by default for the CLIs, in a per-user directory."""
+"""JAX's persistent compilation cache, on by default for the CLIs, in a per-user directory,
+and beside it the cache of traced episodes (`export_cache`)."""
 
 from __future__ import annotations
 
@@ -6,6 +7,8 @@ import os
 from pathlib import Path
 
 import jax
+
+_EXPORT_DIR: Path | None = None
 
 
 def default_cache_dir() -> Path:
@@ -18,9 +21,17 @@ def enable_compilation_cache(path: Path | None = None) -> Path:
 
     Executables that embed host callbacks (the `c` backend) are not cacheable; JAX skips them.
     """
+    global _EXPORT_DIR
     path = path or default_cache_dir()
     path.mkdir(parents=True, exist_ok=True)
     jax.config.update("jax_compilation_cache_dir", str(path))
     jax.config.update("jax_persistent_cache_min_compile_time_secs", 1.0)
     jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
+    _EXPORT_DIR = path.parent / "export"
     return path
+
+
+def export_dir() -> Path | None:
+    """Where traced episodes are cached: beside the compilation cache, once it is enabled
+    (a process-wide setting, like JAX's own cache directory)."""
+    return _EXPORT_DIR

@@ -23,10 +23,12 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 from flax import struct
+from jax import export
 from jax.experimental import multihost_utils
 from jax.sharding import Mesh, NamedSharding
 from jax.sharding import PartitionSpec as P
 
+from openral_mjx import compile_cache, export_cache
 from openral_mjx.errors import ConfigError
 from openral_mjx.policies.base import Policy
 from openral_mjx.scenes.base import Scene
@@ -41,6 +43,14 @@ class EpisodeArrays:
     first_success_step: jax.Array  # int32, -1 if never
     total_reward: jax.Array  # float32
     diverged: jax.Array  # bool: non-finite or engine-reset state; never a success
+
+
+export.register_pytree_node_serialization(
+    EpisodeArrays,
+    serialized_name="openral_mjx.rollout.EpisodeArrays",
+    serialize_auxdata=lambda aux: b"",
+    deserialize_auxdata=lambda data: (),
+)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -292,6 +302,7 @@ class EpisodeRunner:
                 f"{self.per_device} envs per device exceed the {scene.backend.name} backend's "
                 f"buffers (sized for batch_size={limit}); build the scene with a larger batch_size"
             )
+        self.policy = policy
         self.max_steps, self.record, self.memory_fraction = max_steps, record, memory_fraction
         self._fn = self.layout.wrap(
             make_episode_fn(scene, policy, max_steps, record=record), record
@@ -305,16 +316,38 @@ class EpisodeRunner:
         """The batch that runs (final once compiled: it may shrink to fit in memory)."""
         return self.per_device * len(self.layout.devices)
 
+    def _export_key(self, args: tuple) -> str | None:
+        """Key of the traced episode in the export cache; None where it cannot be cached (host
+        callbacks in the physics, or a policy that does not say what determines its code)."""
+        scene, policy = self.scene, self.policy
+        if not scene.backend.exportable or policy.cache_key is None:
+            return None
+        return export_cache.cache_key(
+            scene=[type(scene).__module__, type(scene).__qualname__, scene.name],
+            options=dataclasses.asdict(scene.options),
+            model=export_cache.model_digest(scene.mj_model),
+            backend=scene.backend.describe(),
+            policy=policy.cache_key,
+            max_steps=self.max_steps,
+            record=list(self.record),
+            devices=[[d.platform, d.device_kind] for d in self.layout.devices],
+            args=export_cache.argument_signature(args),
+        )
+
+    def _lower_compile(self, params: Any) -> Any:
+        args = (params, self.layout.put_envs(np.zeros(self.n_envs, np.int32)))
+        key = self._export_key(args)
+        lowered = export_cache.lower(self._fn, args, key, compile_cache.export_dir())
+        return lowered.compile()
+
     def _compile(self, params: Any) -> float:
         layout, t0 = self.layout, time.perf_counter()
-        compiled = self._fn.lower(params, layout.put_envs(np.zeros(self.n_envs, np.int32)))
-        compiled = compiled.compile()
+        compiled = self._lower_compile(params)
         need, free = _peak_bytes(compiled), free_device_bytes(layout.devices[0])
         fitted = _fit_batch(self.per_device, need, free, self.memory_fraction)
         if fitted != self.per_device:
             self.per_device = fitted
-            compiled = self._fn.lower(params, layout.put_envs(np.zeros(self.n_envs, np.int32)))
-            compiled = compiled.compile()
+            compiled = self._lower_compile(params)
             need = _peak_bytes(compiled)
         self.scene.backend.warm_up()
         factor_fn = make_factor_fn(self.scene, layout.devices)

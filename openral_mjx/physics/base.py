@@ -82,6 +82,9 @@ class PhysicsBackend(abc.ABC):
     """
 
     name: ClassVar[str]
+    # Whether an episode on this backend can be serialized with `jax.export` (no host
+    # callbacks, no foreign custom calls); see `export_cache`.
+    exportable: ClassVar[bool] = False
 
     def __init__(
         self,

@@ -31,6 +31,7 @@ class MjxBackend(PhysicsBackend):
 
     name = "mjx"
     impl = "jax"
+    exportable = True
 
     def _setup(self, spec: mujoco.MjSpec) -> None:
         self.mx = self._put_model()

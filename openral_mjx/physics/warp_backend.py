@@ -34,6 +34,7 @@ class WarpBackend(MjxBackend):
 
     name = "warp"
     impl = "warp"
+    exportable = False  # Warp's FFI calls are not serializable; it traces in ~1 s anyway
 
     def _setup(self, spec: mujoco.MjSpec) -> None:
         if not warp_installed():

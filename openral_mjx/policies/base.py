@@ -24,3 +24,6 @@ class Policy:
     name: str
     init: InitFn
     act: ActFn
+    # What, besides the scene and this package's source, decides the code `act` traces to; a
+    # traced episode may be reused across runs under it (see `export_cache`). None: never.
+    cache_key: str | None = None

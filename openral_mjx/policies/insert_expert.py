@@ -209,4 +209,4 @@ def insert_expert(
         action = action.at[gripper_actuator].set(grip)
         return jnp.clip(action, low, high), (phase, timer)
 
-    return Policy("scripted", init, act)
+    return Policy("scripted", init, act, cache_key="scripted")

@@ -110,4 +110,4 @@ def push_expert(
         action = jnp.clip((q + dq)[actuator_joint], low, high)
         return action, phase
 
-    return Policy("scripted", init, act)
+    return Policy("scripted", init, act, cache_key="scripted")

@@ -20,7 +20,7 @@ def zero_policy(action_size: int) -> Policy:
         del params, obs, key
         return jnp.zeros(action_size, jnp.float32), pstate
 
-    return Policy("zero", _no_params, act)
+    return Policy("zero", _no_params, act, cache_key="zero")
 
 
 def random_policy(low: jax.Array, high: jax.Array) -> Policy:
@@ -30,4 +30,4 @@ def random_policy(low: jax.Array, high: jax.Array) -> Policy:
         del params, obs
         return jax.random.uniform(key, low.shape, minval=low, maxval=high), pstate
 
-    return Policy("random", _no_params, act)
+    return Policy("random", _no_params, act, cache_key="random")

@@ -31,7 +31,7 @@ from jax.sharding import PartitionSpec as P
 from openral_mjx import compile_cache, export_cache
 from openral_mjx.errors import ConfigError
 from openral_mjx.policies.base import Policy
-from openral_mjx.scenes.base import Scene
+from openral_mjx.scenes.base import Scene, State
 
 
 @struct.dataclass
@@ -78,7 +78,70 @@ def seed_keys(seeds: jax.Array) -> tuple[jax.Array, jax.Array]:
     return split[:, 0], split[:, 1]
 
 
-TRACES = ("obs", "actions")
+TRACES = ("obs", "actions", "rewards")
+StepRecord = Callable[[State, State, jax.Array, jax.Array], Any]
+
+
+def _episode_scan(
+    scene: Scene,
+    policy: Policy,
+    max_steps: int,
+    params: Any,
+    seeds: jax.Array,
+    record: StepRecord | None,
+) -> tuple[EpisodeArrays, State, Any]:
+    """Reset a batch of seeds and scan `max_steps` control steps.
+
+    Returns the episode outcomes, the reset state and, per step, `record(state, new_state,
+    action, live)` of the batch (the states before and after the step, stacked on a leading
+    step axis; None without `record`). `live` is False for envs whose episode had already ended
+    before the step.
+    """
+    reset_keys, policy_keys = seed_keys(seeds)
+    state = jax.vmap(scene.reset)(reset_keys)
+    _, pstate0 = policy.init(
+        jax.random.PRNGKey(0), jax.ShapeDtypeStruct(state.obs.shape[1:], state.obs.dtype)
+    )
+    n = seeds.shape[0]
+    pstate = jax.tree.map(lambda x: jnp.broadcast_to(x, (n, *jnp.shape(x))), pstate0)
+    acc = EpisodeArrays(
+        success=state.metrics["success"],
+        steps=jnp.zeros(n, jnp.int32),
+        first_success_step=jnp.where(state.metrics["success"], 0, -1).astype(jnp.int32),
+        total_reward=jnp.zeros(n, jnp.float32),
+        diverged=state.metrics["diverged"],
+    )
+
+    def body(carry, t):
+        state, pstate, acc, done = carry
+        step_keys = jax.vmap(lambda k: jax.random.fold_in(k, t))(policy_keys)
+        action, new_pstate = jax.vmap(policy.act, in_axes=(None, 0, 0, 0))(
+            params, pstate, state.obs, step_keys
+        )
+        new_state = jax.vmap(scene.step)(state, action)
+        live = ~done
+        success = new_state.metrics["success"] & live
+        diverged = new_state.metrics["diverged"] & live
+        acc = EpisodeArrays(
+            success=acc.success | success,
+            steps=acc.steps + live.astype(jnp.int32),
+            first_success_step=jnp.where(
+                success & (acc.first_success_step < 0), t + 1, acc.first_success_step
+            ),
+            total_reward=acc.total_reward + jnp.where(live, new_state.reward, 0.0),
+            diverged=acc.diverged | diverged,
+        )
+        # Finished envs keep simulating in lock-step with the batch, but nothing after their
+        # end counts. Freezing them instead would copy the whole physics state every step
+        # (~60-115 KB per env on MJX/Warp), which costs more than the physics it saves.
+        new_done = done | new_state.done
+        out = None if record is None else record(state, new_state, action, live)
+        return (new_state, new_pstate, acc, new_done), out
+
+    (_, _, acc, _), records = jax.lax.scan(
+        body, (state, pstate, acc, state.done), jnp.arange(max_steps, dtype=jnp.int32)
+    )
+    return acc, state, records
 
 
 def make_episode_fn(
@@ -87,63 +150,76 @@ def make_episode_fn(
     """A pure function `(policy_params, seeds[n]) -> EpisodeArrays` (jit it).
 
     With `record` (a subset of `TRACES`), it also returns per-step traces, each
-    `(max_steps, n, ...)`: `obs`, the observation each action was chosen from, and `actions`
-    (for demonstrations, and for benchmarks that replay actions open-loop). Steps past an
-    episode's end are recorded too; `EpisodeArrays.steps` says how many count.
+    `(max_steps, n, ...)`: `obs`, the observation each action was chosen from, `actions`
+    (for demonstrations, and for benchmarks that replay actions open-loop), and `rewards`,
+    each step's reward (for reward curves). Steps past an episode's end are recorded too
+    (`rewards` as NaN); `EpisodeArrays.steps` says how many count.
     """
     unknown_traces = sorted(set(record) - set(TRACES))
     if unknown_traces:
         raise ValueError(f"unknown traces {unknown_traces}; valid: {', '.join(TRACES)}")
 
-    def episode(params: Any, seeds: jax.Array) -> EpisodeArrays:
-        reset_keys, policy_keys = seed_keys(seeds)
-        state = jax.vmap(scene.reset)(reset_keys)
-        _, pstate0 = policy.init(
-            jax.random.PRNGKey(0), jax.ShapeDtypeStruct(state.obs.shape[1:], state.obs.dtype)
-        )
-        n = seeds.shape[0]
-        pstate = jax.tree.map(lambda x: jnp.broadcast_to(x, (n, *jnp.shape(x))), pstate0)
-        acc = EpisodeArrays(
-            success=state.metrics["success"],
-            steps=jnp.zeros(n, jnp.int32),
-            first_success_step=jnp.where(state.metrics["success"], 0, -1).astype(jnp.int32),
-            total_reward=jnp.zeros(n, jnp.float32),
-            diverged=state.metrics["diverged"],
-        )
-        done0 = state.done
+    def traces(state: State, new_state: State, action: jax.Array, live: jax.Array) -> dict:
+        every = {
+            "obs": lambda: state.obs,
+            "actions": lambda: action,
+            "rewards": lambda: jnp.where(live, new_state.reward, jnp.nan),
+        }
+        return {k: every[k]() for k in record}
 
-        def body(carry, t):
-            state, pstate, acc, done = carry
-            step_keys = jax.vmap(lambda k: jax.random.fold_in(k, t))(policy_keys)
-            action, new_pstate = jax.vmap(policy.act, in_axes=(None, 0, 0, 0))(
-                params, pstate, state.obs, step_keys
-            )
-            new_state = jax.vmap(scene.step)(state, action)
-            live = ~done
-            success = new_state.metrics["success"] & live
-            diverged = new_state.metrics["diverged"] & live
-            acc = EpisodeArrays(
-                success=acc.success | success,
-                steps=acc.steps + live.astype(jnp.int32),
-                first_success_step=jnp.where(
-                    success & (acc.first_success_step < 0), t + 1, acc.first_success_step
-                ),
-                total_reward=acc.total_reward + jnp.where(live, new_state.reward, 0.0),
-                diverged=acc.diverged | diverged,
-            )
-            # Finished envs keep simulating in lock-step with the batch, but nothing after their
-            # end counts. Freezing them instead would copy the whole physics state every step
-            # (~60-115 KB per env on MJX/Warp), which costs more than the physics it saves.
-            new_done = done | new_state.done
-            trace = {"obs": state.obs, "actions": action}
-            return (new_state, new_pstate, acc, new_done), {k: trace[k] for k in record}
-
-        (_, _, acc, _), traces = jax.lax.scan(
-            body, (state, pstate, acc, done0), jnp.arange(max_steps, dtype=jnp.int32)
+    def episode(params: Any, seeds: jax.Array) -> Any:
+        acc, _, out = _episode_scan(
+            scene, policy, max_steps, params, seeds, traces if record else None
         )
-        return (acc, traces) if record else acc
+        return (acc, out) if record else acc
 
     return episode
+
+
+def make_trace_fn(
+    scene: Scene, policy: Policy, max_steps: int, n_traced: int
+) -> Callable[[Any, jax.Array, jax.Array], tuple[EpisodeArrays, dict[str, Any]]]:
+    """The episode function that also records every step of a few envs (for videos).
+
+    `(params, seeds[n], slots[n]) -> (EpisodeArrays[n], trace)`: the env with slot k < n_traced
+    fills row k of every `trace` leaf, shaped `(n_traced, max_steps + 1, ...)` with step 0 the
+    reset state; other envs have slot >= n_traced. The trace holds `frame` (the scene's
+    `frame_record`), `images` (its `policy_images`), `action` (that led to the step; zero at
+    step 0), `reward` and `live` (1 while the episode ran, 0 after its end). Only the
+    traced envs' rows are kept (a scatter per step), so tracing costs little memory at any
+    batch size. Under `shard_map`, rows are summed over the `env` mesh axis (one device holds
+    each traced env, the others add zeros), so the trace comes back whole on every device.
+    """
+
+    def frame(state: State, action: jax.Array, live: jax.Array) -> dict[str, Any]:
+        return {
+            "frame": jax.vmap(scene.frame_record)(state),
+            "images": jax.vmap(scene.policy_images)(state),
+            "action": action,
+            "reward": state.reward,
+            "live": live.astype(jnp.int32),
+        }
+
+    def trace(params: Any, seeds: jax.Array, slots: jax.Array) -> Any:
+        def pick(tree: Any) -> Any:
+            return jax.tree.map(
+                lambda x: (
+                    jnp.zeros((n_traced, *x.shape[1:]), x.dtype).at[slots].set(x, mode="drop")
+                ),
+                tree,
+            )
+
+        def record(state: State, new_state: State, action: jax.Array, live: jax.Array) -> Any:
+            return pick(frame(new_state, action, live))
+
+        acc, first, records = _episode_scan(scene, policy, max_steps, params, seeds, record)
+        n = seeds.shape[0]
+        start = pick(frame(first, jnp.zeros((n, scene.action_size)), jnp.ones(n, bool)))
+        steps = jax.tree.map(lambda a, b: jnp.concatenate([a[None], b]), start, records)
+        steps = jax.lax.psum(steps, "env")
+        return acc, jax.tree.map(lambda x: jnp.swapaxes(x, 0, 1), steps)
+
+    return trace
 
 
 def check_counts(n_envs: int, n_episodes: int, max_steps: int) -> None:
@@ -197,6 +273,18 @@ class _Layout:
                 mesh=self.mesh,
                 in_specs=(P(), P("env")),
                 out_specs=out_specs,
+                check_vma=False,
+            )
+        )
+
+    def wrap_trace(self, trace: Callable) -> Callable:
+        """The jitted trace function (see `make_trace_fn`): envs sharded, the trace whole."""
+        return jax.jit(
+            jax.shard_map(
+                trace,
+                mesh=self.mesh,
+                in_specs=(P(), P("env"), P("env")),
+                out_specs=(P("env"), P()),
                 check_vma=False,
             )
         )
@@ -264,6 +352,23 @@ def _fit_batch(per_device: int, need: int | None, free: int | None, fraction: fl
     return max(1, target // 64 * 64 if target >= 64 else target)
 
 
+def envs_per_device(n_envs: int, n_devices: int, limit: int | None = None) -> int:
+    """Envs each device runs for a batch of `n_envs`: rounded up, and at least two (within
+    the backend's `limit`). XLA compiles a batch of one as scalar code whose fused arithmetic
+    (FMA contraction) can differ in the last bit from batched code: two envs per device keep
+    seed s's episode identical whether it runs alone or in a batch."""
+    return max(-(-n_envs // n_devices), min(2, limit or 2))
+
+
+def seed_chunks(seeds: np.ndarray, n_envs: int) -> np.ndarray:
+    """The batches `run_seeds` runs, `(n_chunks, n_envs)` int32: the seeds in order, the last
+    chunk padded with the seeds that follow the last one (their results are dropped)."""
+    seeds = np.asarray(seeds, np.int64)
+    n_chunks = -(-len(seeds) // n_envs)
+    padded = np.concatenate([seeds, seeds[-1] + 1 + np.arange(n_chunks * n_envs - len(seeds))])
+    return np.minimum(padded, 2**31 - 1).astype(np.int32).reshape(n_chunks, n_envs)
+
+
 class EpisodeRunner:
     """Rolls out seeds in chunks of `n_envs`, compiled once and kept across `run` calls.
 
@@ -291,12 +396,8 @@ class EpisodeRunner:
         check_counts(n_envs, 1, max_steps)
         self.scene = scene
         self.layout = _Layout(tuple(devices or scene.backend.devices()))
-        self.per_device = -(-n_envs // len(self.layout.devices))
         limit = scene.backend.max_batch
-        # XLA compiles a batch of one as scalar code whose fused arithmetic (FMA contraction)
-        # can differ in the last bit from batched code: two envs per device keep seed s's
-        # episode identical whether it runs alone or in a batch.
-        self.per_device = max(self.per_device, min(2, limit or 2))
+        self.per_device = envs_per_device(n_envs, len(self.layout.devices), limit)
         if limit is not None and self.per_device > limit:
             raise ConfigError(
                 f"{self.per_device} envs per device exceed the {scene.backend.name} backend's "
@@ -385,9 +486,8 @@ class EpisodeRunner:
         params = layout.put_replicated(params) if params is not None else None
         compile_s = self._compile(params) if self._compiled is None else 0.0
         n_envs = self.n_envs
-        n_chunks = -(-len(seeds) // n_envs)
-        padded = np.concatenate([seeds, seeds[-1] + 1 + np.arange(n_chunks * n_envs - len(seeds))])
-        padded = np.minimum(padded, 2**31 - 1).astype(np.int32)
+        chunks = seed_chunks(seeds, n_envs)
+        n_chunks = len(chunks)
         if on_chunk is not None:
             on_chunk(0, len(seeds))
 
@@ -396,7 +496,7 @@ class EpisodeRunner:
         merged: dict[str, Any] = {}
         for c in range(n_chunks):
             t = time.perf_counter()
-            chunk = layout.put_envs(padded[c * n_envs : (c + 1) * n_envs])
+            chunk = layout.put_envs(chunks[c])
             out = layout.get(self._compiled(params, chunk))
             factors = {} if self._factor_fn is None else layout.get(self._factor_fn(chunk))
             chunk_s.append(time.perf_counter() - t)
@@ -450,3 +550,57 @@ def run_seeds(
         devices=devices,
     )
     return runner.run(params, seeds, on_chunk, until)
+
+
+_TRACE_FNS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def trace_seeds(
+    scene: Scene,
+    policy: Policy,
+    params: Any,
+    *,
+    seeds: Sequence[int],
+    max_steps: int,
+    batch_of: Callable[[int], np.ndarray] | None = None,
+    devices: Sequence[jax.Device] | None = None,
+) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+    """Re-run `seeds` and record every step of their episodes (see `make_trace_fn`).
+
+    Each seed runs inside the batch `batch_of(seed)` (e.g. the chunk it ran in during an
+    evaluation, for backends whose episodes depend on the batch layout); by default the traced
+    seeds run together as one batch (enough where a seed's episode is the same in any batch).
+    Returns the traced episodes' outcomes (`EpisodeArrays` fields, one entry per seed, in the
+    order given) and their trace (numpy leaves `(len(seeds), max_steps + 1, ...)`).
+    """
+    seeds = [int(s) for s in seeds]
+    layout = _Layout(tuple(devices or scene.backend.devices()))
+    n_dev = len(layout.devices)
+    groups: dict[bytes, tuple[np.ndarray, list[int]]] = {}
+    for i, seed in enumerate(seeds):
+        batch = np.asarray(sorted(set(seeds)) if batch_of is None else batch_of(seed), np.int64)
+        if not (batch == seed).any():
+            raise ValueError(f"seed {seed} is not in the batch it should run in")
+        groups.setdefault(batch.tobytes(), (batch, []))[1].append(i)
+    n_traced = max(len(rows) for _, rows in groups.values())
+    key = (policy, max_steps, n_traced, layout.devices)
+    cache = _TRACE_FNS.setdefault(scene, {})
+    if key not in cache:
+        cache[key] = layout.wrap_trace(make_trace_fn(scene, policy, max_steps, n_traced))
+    fn = cache[key]
+    params = layout.put_replicated(params) if params is not None else None
+    outcomes: list[Any] = [None] * len(seeds)
+    traces: list[Any] = [None] * len(seeds)
+    for batch, rows in groups.values():
+        padded = seed_chunks(batch, envs_per_device(len(batch), n_dev) * n_dev)[0]
+        slots = np.full(len(padded), n_traced, np.int32)
+        for slot, i in enumerate(rows):
+            slots[int(np.flatnonzero(padded == seeds[i])[0])] = slot
+        acc, trace = layout.get(fn(params, layout.put_envs(padded), layout.put_envs(slots)))
+        for slot, i in enumerate(rows):
+            position = int(np.flatnonzero(slots == slot)[0])
+            outcomes[i] = jax.tree.map(lambda x, p=position: np.asarray(x)[p], acc)
+            traces[i] = jax.tree.map(lambda x, k=slot: np.asarray(x)[k], trace)
+    fields = [f.name for f in dataclasses.fields(EpisodeArrays)]
+    arrays = {f: np.array([getattr(o, f) for o in outcomes]) for f in fields}
+    return arrays, jax.tree.map(lambda *xs: np.stack(xs), *traces)

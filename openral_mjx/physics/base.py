@@ -85,6 +85,9 @@ class PhysicsBackend(abc.ABC):
     # Whether an episode on this backend can be serialized with `jax.export` (no host
     # callbacks, no foreign custom calls); see `export_cache`.
     exportable: ClassVar[bool] = False
+    # True where a seed's episode is bit-identical in any batch layout (size, neighbours,
+    # devices), so re-running a seed alone reproduces it; else only the same layout may.
+    layout_invariant: ClassVar[bool] = False
 
     def __init__(
         self,

@@ -65,6 +65,32 @@ class Scene(abc.ABC):
         del state
         return {}
 
+    # The camera videos show unless told otherwise (None: the model's first camera).
+    video_camera: str | None = None
+
+    def frame_record(self, state: State) -> dict[str, jax.Array]:
+        """What drawing this env's frame needs, read from its state (pure JAX, one env).
+
+        Recorded per step only for the few episodes a video shows; `pose_frame` puts it back
+        into MuJoCo on the host. Default: the joint positions. A scene that draws per-episode
+        markers (a goal) or moves mocap bodies adds them.
+        """
+        return {"qpos": state.physics.quantities.qpos}
+
+    def pose_frame(
+        self, model: mujoco.MjModel, data: mujoco.MjData, record: Mapping[str, np.ndarray]
+    ) -> None:
+        """Host side: load one step of `frame_record` into `data` (and per-episode markers into
+        `model`, a copy private to the renderer) before `mj_forward`."""
+        del model
+        data.qpos[:] = record["qpos"]
+
+    def policy_images(self, state: State) -> dict[str, jax.Array]:
+        """Images the policy observes (name -> (H, W) depth in metres or (H, W, 3) RGB in
+        [0, 1]), shown beside the scene in videos. Default: none (vector observations)."""
+        del state
+        return {}
+
     @property
     def max_steps(self) -> int:
         """Default episode length in control steps (the options' `max_steps`)."""

@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Mapping
 from pathlib import Path
 
 import jax
@@ -221,6 +222,7 @@ class TabletopPush(Scene):
         self.cube_qpos_adr = int(cube_joint.qposadr[0])
         self.cube_dof_adr = int(cube_joint.dofadr[0])
         self.ee_site_id = m.site(robot.ee_site).id
+        self.goal_site_id = m.site("goal").id
         home = np.array(m.qpos0, dtype=np.float32)
         for joint, value in robot.home_qpos.items():
             home[m.joint(joint).qposadr[0]] = value
@@ -293,6 +295,18 @@ class TabletopPush(Scene):
             info=info,
         )
         return self._evaluate(state, physics)
+
+    video_camera = "front"
+
+    def frame_record(self, state: State) -> dict[str, jax.Array]:
+        return {**super().frame_record(state), "goal_xy": state.info["goal_xy"]}
+
+    def pose_frame(
+        self, model: mujoco.MjModel, data: mujoco.MjData, record: Mapping[str, np.ndarray]
+    ) -> None:
+        """Joint positions, and the goal disc moved to this episode's goal."""
+        super().pose_frame(model, data, record)
+        model.site_pos[self.goal_site_id, :2] = record["goal_xy"]
 
     def episode_factors(self, state: State) -> dict[str, jax.Array]:
         q = state.physics.quantities

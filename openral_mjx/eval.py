@@ -19,13 +19,18 @@ from openral_mjx.cli_common import command_line, guarded, stderr
 from openral_mjx.compare import compare_reports, format_comparison
 from openral_mjx.compile_cache import enable_compilation_cache
 from openral_mjx.errors import ConfigError
-from openral_mjx.evaluate import evaluate
+from openral_mjx.evaluate import Evaluation, build_scene, run_evaluation
 from openral_mjx.options import load_yaml, parse_overrides
 from openral_mjx.physics import BACKEND_NAMES, resolve_backend_name
 from openral_mjx.policies import POLICIES
 from openral_mjx.robots import ROBOTS
 from openral_mjx.scenes import SCENES, check_robot
 from openral_mjx.schema import EvalReport, load_report, save_report
+from openral_mjx.viz import require_viz
+from openral_mjx.viz.gl import GLUnavailable, camera_id, gl_backend
+from openral_mjx.viz.plots import write_plots
+from openral_mjx.viz.record import choose_seeds, trace_episodes
+from openral_mjx.viz.video import default_camera, write_episode_video
 
 
 @dataclasses.dataclass
@@ -72,6 +77,14 @@ class EvalArgs:
     """Print the success breakdown by episode factor."""
     compare_with: Path | None = None
     """A report of the same scene to compare this run with (paired by seed where shared)."""
+    video: int = 0
+    """Write MP4s of the first K episodes (re-simulated after the run) to REPORT_videos/."""
+    video_failures: int = 0
+    """Write MP4s of the first K failed episodes too."""
+    video_camera: str | None = None
+    """Camera the videos show (default: the scene's choice)."""
+    plots: bool = False
+    """Write PNG plots beside the report: success by factor, episode lengths, reward curves."""
     compile_cache: bool = True
     """Use JAX's persistent compilation cache (~/.cache/openral_mjx/jax)."""
     list: bool = False
@@ -160,6 +173,29 @@ def run(args: EvalArgs) -> int:
                 f"reports are not comparable: scene {baseline.scene!r} ({args.compare_with}) "
                 f"vs {args.scene!r}"
             )
+    if min(args.video, args.video_failures) < 0:
+        raise ConfigError(
+            f"--video and --video-failures must be >= 0, got {args.video}, {args.video_failures}"
+        )
+    want_video = args.video > 0 or args.video_failures > 0
+    if want_video or args.plots:
+        require_viz()
+    scene = build_scene(
+        args.scene,
+        options,
+        backend=backend,
+        n_envs=args.n_envs,
+        threads=args.threads,
+        contacts_per_env=args.contacts_per_env,
+    )
+    camera, gl, no_gl = "", "", None
+    if want_video:
+        camera = args.video_camera or default_camera(scene)
+        camera_id(scene.mj_model, camera)
+        try:
+            gl = gl_backend()
+        except GLUnavailable as e:  # the evaluation still runs and writes its report
+            no_gl = e
     if args.compile_cache:
         enable_compilation_cache()
 
@@ -176,8 +212,8 @@ def run(args: EvalArgs) -> int:
         def on_chunk(done: int, total: int) -> None:
             progress.update(task, description="episodes", completed=done, total=total)
 
-        report = evaluate(
-            args.scene,
+        evaluation = run_evaluation(
+            scene,
             args.policy,
             n_envs=args.n_envs,
             n_episodes=args.n_episodes,
@@ -187,12 +223,11 @@ def run(args: EvalArgs) -> int:
             seed=args.seed,
             max_steps=args.max_steps,
             backend=backend,
-            threads=args.threads,
-            contacts_per_env=args.contacts_per_env,
-            options=options,
             command=_reproduce(args, backend, out),
             on_chunk=on_chunk,
+            step_rewards=args.plots,
         )
+    report = evaluation.report
     save_report(report, out)
     print(report.summary())
     if report.n_envs < min(args.n_envs, report.n_episodes):
@@ -209,7 +244,30 @@ def run(args: EvalArgs) -> int:
         rc = compare_reports(baseline, report)
         print(format_comparison(rc, baseline, report, (str(args.compare_with), str(out))))
     print(f"report: {out}")
+    stem = out.with_suffix("")
+    if args.plots:
+        for path in write_plots(report, stem, evaluation.arrays["rewards"]):
+            print(f"plot: {path}")
+    if want_video:
+        if no_gl is not None:
+            raise GLUnavailable(f"cannot render videos: {no_gl}")
+        write_videos(evaluation, args, stem.with_name(f"{stem.name}_videos"), camera, gl)
     return 0
+
+
+def write_videos(
+    evaluation: Evaluation, args: EvalArgs, folder: Path, camera: str, gl: str
+) -> None:
+    """Re-simulate the chosen episodes and write one MP4 each into `folder`."""
+    seeds = choose_seeds(evaluation, args.video, args.video_failures)
+    with stderr.status(f"re-simulating {len(seeds)} episode(s) for videos"):
+        traces = trace_episodes(evaluation, seeds)
+    for trace in traces:
+        path = folder / f"seed{trace.seed}_{trace.outcome}.mp4"
+        with stderr.status(f"rendering {path.name}"):
+            write_episode_video(path, evaluation.scene, args.policy, trace, camera=camera, gl=gl)
+        note = "" if trace.reproduced else "; re-simulation DIFFERS from the evaluated episode"
+        print(f"video: {path} ({trace.outcome} at step {trace.steps}{note})")
 
 
 def sequential_summary(report: EvalReport) -> str:

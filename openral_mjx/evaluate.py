@@ -17,7 +17,7 @@ from openral_mjx.breakdown import breakdown
 from openral_mjx.errors import ConfigError
 from openral_mjx.options import to_dict
 from openral_mjx.physics import PhysicsSettings
-from openral_mjx.policies import make_policy
+from openral_mjx.policies import Policy, make_policy
 from openral_mjx.rollout import FACTOR_PREFIX, RunTiming, check_counts, run_seeds
 from openral_mjx.scenes import Scene, make_scene
 from openral_mjx.schema import EpisodeResult, EvalReport, SequentialInfo, TaskRow
@@ -97,7 +97,57 @@ def episode_results(
     return results
 
 
+def build_scene(
+    name: str,
+    options: Mapping[str, Any] | None = None,
+    *,
+    backend: str = "auto",
+    n_envs: int = 1024,
+    threads: int | None = None,
+    contacts_per_env: int | None = None,
+) -> Scene:
+    """Scene `name` on `backend`, its buffers sized for batches of `n_envs`."""
+    settings = PhysicsSettings(threads=threads, batch_size=n_envs)
+    if contacts_per_env is not None:
+        settings = dataclasses.replace(settings, contacts_per_env=contacts_per_env)
+    return make_scene(name, options, backend=backend, settings=settings)
+
+
+@dataclasses.dataclass
+class Evaluation:
+    """A finished evaluation with what produced it, for looking at it afterwards (videos).
+
+    `seeds` are the seeds the run was given (a sequential run may have stopped before the last
+    ones); `arrays` the runner's per-seed arrays of the episodes that ran (`rewards`, per step,
+    only when asked for); `timing` its batch layout and timings.
+    """
+
+    report: EvalReport
+    scene: Scene
+    policy: Policy
+    params: Any
+    seeds: np.ndarray
+    arrays: dict[str, np.ndarray]
+    timing: RunTiming
+
+
 def evaluate(
+    scene: str | Scene = "tabletop_push",
+    policy: str = "scripted",
+    **kwargs: Any,
+) -> EvalReport:
+    """Evaluate `policy` on seeds `seed .. seed + n_episodes - 1` and return the report.
+
+    Keyword arguments are `run_evaluation`'s. With `target_halfwidth`, run sequentially
+    instead: chunks of `n_envs` seeds until the success-rate interval's half-width is at most
+    the target, or `max_episodes` (default: the worst case, rate 1/2); the report's interval
+    is then exact for that stopping rule (see `openral_mjx.sequential`). Raises `ConfigError`
+    for unknown names, bad options and non-positive counts.
+    """
+    return run_evaluation(scene, policy, **kwargs).report
+
+
+def run_evaluation(
     scene: str | Scene = "tabletop_push",
     policy: str = "scripted",
     *,
@@ -114,15 +164,10 @@ def evaluate(
     options: Mapping[str, Any] | None = None,
     command: str = "",
     on_chunk: Callable[[int, int], None] | None = None,
-) -> EvalReport:
-    """Evaluate `policy` on seeds `seed .. seed + n_episodes - 1` and return the report.
-
-    With `target_halfwidth`, run sequentially instead: chunks of `n_envs` seeds until the
-    success-rate interval's half-width is at most the target, or `max_episodes` (default: the
-    worst case, rate 1/2); the report's interval is then exact for that stopping rule (see
-    `openral_mjx.sequential`). Raises `ConfigError` for unknown names, bad options and
-    non-positive counts.
-    """
+    step_rewards: bool = False,
+) -> Evaluation:
+    """`evaluate`, returning the report with the scene, policy and per-seed arrays that made
+    it; `step_rewards` also keeps every step's reward (`arrays["rewards"]`, for plots)."""
     rule = _sequential_rule(n_envs, n_episodes, target_halfwidth, max_episodes)
     if rule is not None:
         n_episodes = rule.max_episodes
@@ -133,13 +178,17 @@ def evaluate(
     if factor_bins < 1:
         raise ConfigError(f"factor_bins must be a positive integer, got {factor_bins}")
     if isinstance(scene, str):
-        settings = PhysicsSettings(threads=threads, batch_size=n_envs)
-        if contacts_per_env is not None:
-            settings = dataclasses.replace(settings, contacts_per_env=contacts_per_env)
-        scene = make_scene(scene, options, backend=backend, settings=settings)
+        scene = build_scene(
+            scene,
+            options,
+            backend=backend,
+            n_envs=n_envs,
+            threads=threads,
+            contacts_per_env=contacts_per_env,
+        )
     pol = make_policy(policy, scene)
     steps = scene.max_steps if max_steps is None else max_steps
-    seeds = np.arange(seed, seed + n_episodes, dtype=np.int64)
+    requested = np.arange(seed, seed + n_episodes, dtype=np.int64)
     params, _ = pol.init(
         jax.random.PRNGKey(seed), jax.ShapeDtypeStruct((scene.observation_size,), np.float32)
     )
@@ -147,14 +196,15 @@ def evaluate(
         scene,
         pol,
         params,
-        seeds=seeds,
+        seeds=requested,
         n_envs=n_envs,
         max_steps=steps,
         on_chunk=on_chunk,
         until=rule,
+        record_rewards=step_rewards,
     )
     n_episodes = len(arrays["success"])
-    seeds = seeds[:n_episodes]
+    seeds = requested[:n_episodes]
     meta = {
         "scene": scene.name,
         "task": scene.task,
@@ -182,7 +232,7 @@ def evaluate(
     names = episodes[0].metadata["factors"] if episodes else {}
     factors = {k: [e.metadata["factors"][k] for e in episodes] for k in names}
     simulated = len(timing.chunk_s) * timing.n_envs * timing.scan_steps
-    return EvalReport(
+    report = EvalReport(
         scene=scene.name,
         task=scene.task,
         robot=scene.robot_name,
@@ -214,6 +264,7 @@ def evaluate(
         episodes=episodes,
         sequential=sequential,
     )
+    return Evaluation(report, scene, pol, params, requested, arrays, timing)
 
 
 class SequentialRule:
@@ -265,4 +316,4 @@ def _sequential_rule(
     return SequentialRule(target, max_episodes or sufficient_episodes(target))
 
 
-__all__ = ["evaluate", "package_versions"]
+__all__ = ["Evaluation", "build_scene", "evaluate", "package_versions", "run_evaluation"]

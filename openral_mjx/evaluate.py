@@ -107,6 +107,7 @@ def build_scene(
     contacts_per_env: int | None = None,
 ) -> Scene:
     """Scene `name` on `backend`, its buffers sized for batches of `n_envs`."""
+    check_counts(n_envs, 1, 1)
     settings = PhysicsSettings(threads=threads, batch_size=n_envs)
     if contacts_per_env is not None:
         settings = dataclasses.replace(settings, contacts_per_env=contacts_per_env)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import jax
@@ -34,3 +35,25 @@ def push_warp() -> TabletopPush:
 @pytest.fixture(scope="session")
 def box_c() -> So101Box:
     return So101Box(backend="c", settings=PhysicsSettings(threads=2))
+
+
+@pytest.fixture(scope="session")
+def scripted_eval(push_c):
+    """8 seeds of the scripted expert, 100 steps (some succeed, some run out of time), with
+    per-step rewards: shared by the video and plot tests."""
+    from openral_mjx.evaluate import run_evaluation
+
+    return run_evaluation(push_c, "scripted", n_envs=8, max_steps=100, step_rewards=True)
+
+
+@pytest.fixture(scope="session")
+def gl() -> str:
+    """A working headless GL backend; CI must have one (`.ci/run` installs Mesa's EGL)."""
+    from openral_mjx.viz.gl import GLUnavailable, gl_backend
+
+    try:
+        return gl_backend()
+    except GLUnavailable as e:
+        if os.environ.get("CI"):
+            pytest.fail(f"CI must be able to render: {e}")
+        pytest.skip(str(e))

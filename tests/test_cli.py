@@ -151,6 +151,11 @@ def test_list(monkeypatch, capsys):
         ),
         (["--factor-bins", "0"], "factor_bins must be a positive integer, got 0"),
         (["--compare-with", "missing.json"], "report 'missing.json' does not exist"),
+        (["--video", "-1"], "--video and --video-failures must be >= 0, got -1, 0"),
+        (
+            ["--video", "1", "--video-camera", "top"],
+            "unknown camera 'top'; valid: overhead, front",
+        ),
     ],
 )
 def test_bad_input(monkeypatch, capsys, tmp_path, argv, needle):
@@ -201,4 +206,56 @@ def test_warp_without_warp_lang(monkeypatch, capsys, tmp_path):
     assert err.strip() == (
         "error: backend 'warp' needs warp-lang; install it with pip install 'openral_mjx[warp]'"
         " (warp-lang)"
+    )
+
+
+def test_videos_and_plots_next_to_the_report(monkeypatch, capsys, tmp_path, gl):
+    """30 steps are too few for the expert: every episode fails, so --video 1 and
+    --video-failures 2 film seeds 0 and 1, one frame per step from the reset state on."""
+    import av
+
+    out_path = tmp_path / "rep.json"
+    argv = ["--n-envs", "4", "--max-steps", "30", "--threads", "1", "--no-breakdown"]
+    flags = ["--video", "1", "--video-failures", "2", "--video-camera", "overhead", "--plots"]
+    code, out, err = run_cli(monkeypatch, capsys, *argv, *flags, "--out", str(out_path))
+    assert code == 0, err
+    videos = tmp_path / "rep_videos"
+    assert sorted(p.name for p in videos.iterdir()) == ["seed0_failure.mp4", "seed1_failure.mp4"]
+    for p in videos.iterdir():
+        assert f"video: {p} (failure at step 30)" in out
+        with av.open(str(p)) as f:
+            assert sum(1 for _ in f.decode(video=0)) == 31
+    for name in ("success_by_factor", "episode_length", "reward"):
+        assert f"plot: {tmp_path / f'rep_{name}.png'}" in out
+        assert (tmp_path / f"rep_{name}.png").stat().st_size > 10_000
+    assert load_report(out_path).n_episodes == 4
+
+
+def test_no_gl_still_writes_the_report(monkeypatch, capsys, tmp_path):
+    from openral_mjx.viz.gl import GLUnavailable
+
+    def no_gl():
+        raise GLUnavailable("no OpenGL backend can render here (egl: no display)")
+
+    monkeypatch.setattr(eval_cli, "gl_backend", no_gl)
+    out_path = tmp_path / "rep.json"
+    argv = ["--n-envs", "4", "--max-steps", "3", "--threads", "1", "--policy", "zero"]
+    argv += ["--video", "2"]
+    code, out, err = run_cli(monkeypatch, capsys, *argv, "--out", str(out_path))
+    assert code == 2 and f"report: {out_path}" in out
+    assert err.strip() == (
+        "error: cannot render videos: no OpenGL backend can render here (egl: no display)"
+    )
+    assert load_report(out_path).n_episodes == 4 and not (tmp_path / "rep_videos").exists()
+
+
+def test_missing_viz_extra_names_the_install(monkeypatch, capsys, tmp_path):
+    import openral_mjx.viz as viz
+
+    monkeypatch.setitem(viz._MODULES, "no_such_module_av", "PyAV")
+    out_path = tmp_path / "rep.json"
+    code, _, err = run_cli(monkeypatch, capsys, "--plots", "--out", str(out_path))
+    assert code == 2 and not out_path.exists()
+    assert err.strip() == (
+        "error: videos and plots need PyAV; install them with pip install 'openral_mjx[viz]'"
     )

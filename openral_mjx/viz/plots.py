@@ -167,7 +167,11 @@ def reward_curves(report: EvalReport, rewards: np.ndarray) -> Any:
         f"(median and 25-75% over running episodes; shown while >= {MIN_RUNNING} run)",
         fontsize=9,
     )
-    top.legend(fontsize=8)
+    if top.lines:
+        top.legend(fontsize=8)
+    else:
+        note = f"fewer than {MIN_RUNNING} episodes of any outcome"
+        top.text(0.5, 0.5, note, ha="center", transform=top.transAxes)
     top.grid(alpha=0.3)
     bottom.set_ylabel("running", fontsize=8)
     bottom.set_xlabel("control step")

@@ -260,6 +260,9 @@ def write_videos(
 ) -> None:
     """Re-simulate the chosen episodes and write one MP4 each into `folder`."""
     seeds = choose_seeds(evaluation, args.video, args.video_failures)
+    failed = int((~evaluation.arrays["success"]).sum())
+    if failed < args.video_failures:
+        print(f"note: {failed} failed episode(s) to film, not {args.video_failures}")
     with stderr.status(f"re-simulating {len(seeds)} episode(s) for videos"):
         traces = trace_episodes(evaluation, seeds)
     for trace in traces:

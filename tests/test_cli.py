@@ -211,16 +211,18 @@ def test_warp_without_warp_lang(monkeypatch, capsys, tmp_path):
 
 def test_videos_and_plots_next_to_the_report(monkeypatch, capsys, tmp_path, gl):
     """30 steps are too few for the expert: every episode fails, so --video 1 and
-    --video-failures 2 film seeds 0 and 1, one frame per step from the reset state on."""
+    --video-failures 5 film the 4 seeds once each (and say there were only 4 failures), one
+    frame per step from the reset state on."""
     import av
 
     out_path = tmp_path / "rep.json"
     argv = ["--n-envs", "4", "--max-steps", "30", "--threads", "1", "--no-breakdown"]
-    flags = ["--video", "1", "--video-failures", "2", "--video-camera", "overhead", "--plots"]
+    flags = ["--video", "1", "--video-failures", "5", "--video-camera", "overhead", "--plots"]
     code, out, err = run_cli(monkeypatch, capsys, *argv, *flags, "--out", str(out_path))
     assert code == 0, err
     videos = tmp_path / "rep_videos"
-    assert sorted(p.name for p in videos.iterdir()) == ["seed0_failure.mp4", "seed1_failure.mp4"]
+    assert sorted(p.name for p in videos.iterdir()) == [f"seed{i}_failure.mp4" for i in range(4)]
+    assert "note: 4 failed episode(s) to film, not 5" in out
     for p in videos.iterdir():
         assert f"video: {p} (failure at step 30)" in out
         with av.open(str(p)) as f:

@@ -182,6 +182,10 @@ def compose(options: TabletopPushOptions, robot: RobotSpec) -> mujoco.MjSpec:
         size=[o.goal_radius, 0.0005, 0],
         pos=[0.2, 0.1, o.table_height + 0.0005],
     )
+    # Rendering only: a brighter headlight than MuJoCo's default, or the table and the arm
+    # come out dark from the scene's cameras.
+    spec.visual.headlight.ambient = [0.35, 0.35, 0.35]
+    spec.visual.headlight.diffuse = [0.55, 0.55, 0.55]
     w.add_light(name="top_light", pos=[0.2, 0, 2.5], dir=[0, 0, -1], diffuse=[0.8, 0.8, 0.8])
     for name, pos in (("overhead", o.camera_overhead_pos), ("front", o.camera_front_pos)):
         w.add_camera(name=name, pos=list(pos), quat=look_at_quat(pos, o.camera_target).tolist())

@@ -89,15 +89,11 @@ class FrameRenderer:
     """Offscreen RGB frames of a model's named cameras through a `gl_backend()` context.
 
     Shadows and reflections are off: in software GL they cost 10-30x the rest of a frame.
-    `model` is modified (offscreen buffer size, headlight), so pass a copy you own.
+    `model` is modified (offscreen buffer size), so pass a copy you own.
     """
 
     def __init__(self, model: mujoco.MjModel, width: int, height: int, gl: str) -> None:
         self.model = model
-        # A brighter headlight than MuJoCo's default: scenes are lit for a viewer that adds
-        # its own light, and a dim frame hides the objects.
-        model.vis.headlight.ambient = (0.35, 0.35, 0.35)
-        model.vis.headlight.diffuse = (0.55, 0.55, 0.55)
         model.vis.global_.offwidth = max(model.vis.global_.offwidth, width)
         model.vis.global_.offheight = max(model.vis.global_.offheight, height)
         self._ctx: Any = importlib.import_module(f"mujoco.{gl}").GLContext(width, height)

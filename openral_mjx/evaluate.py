@@ -202,7 +202,7 @@ def run_evaluation(
         max_steps=steps,
         on_chunk=on_chunk,
         until=rule,
-        record_rewards=step_rewards,
+        record=("rewards",) if step_rewards else (),
     )
     n_episodes = len(arrays["success"])
     seeds = requested[:n_episodes]

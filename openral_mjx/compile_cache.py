@@ -25,7 +25,8 @@ def enable_compilation_cache(path: Path | None = None) -> Path:
     path = path or default_cache_dir()
     path.mkdir(parents=True, exist_ok=True)
     jax.config.update("jax_compilation_cache_dir", str(path))
-    jax.config.update("jax_persistent_cache_min_compile_time_secs", 1.0)
+    # every executable, sub-second ones too (the factor stages): a warm start compiles nothing
+    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
     jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
     _EXPORT_DIR = path.parent / "export"
     return path

@@ -290,16 +290,52 @@ class _Layout:
         )
 
 
-_FACTOR_FNS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+_FACTOR_STAGES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 FACTOR_PREFIX = "factor/"  # run_seeds' key for an episode factor's values
+
+
+@dataclasses.dataclass(frozen=True)
+class FactorStages:
+    """The two jitted halves of a scene's `episode_factors` over seeds (see `make_factor_fn`):
+    `reset(seeds) -> leaves` of the reset state, then `factors(leaves) -> {name: values}`.
+    The state crosses as a flat list of arrays so each half can be exported and cached."""
+
+    reset: Callable[[jax.Array], list[jax.Array]]
+    factors: Callable[[list[jax.Array]], dict[str, jax.Array]]
+
+
+def factor_stages(scene: Scene, devices: Sequence[jax.Device] | None = None) -> FactorStages | None:
+    """The scene's factor stages sharded over `devices`; None when it declares no factors.
+    Cached per scene and devices, so the compiled functions are reused."""
+    layout = _Layout(tuple(devices or scene.backend.devices()))
+    cache = _FACTOR_STAGES.setdefault(scene, {})
+    if layout.devices not in cache:
+
+        def reset(seeds: jax.Array) -> Any:
+            s = jax.vmap(scene.reset)(seed_keys(seeds)[0])
+            return s.replace(physics=s.physics.replace(data=None))
+
+        shape = jax.eval_shape(reset, jax.ShapeDtypeStruct((1,), jnp.int32))
+        stages = None
+        if jax.eval_shape(jax.vmap(scene.episode_factors), shape):
+            treedef = jax.tree.structure(shape)
+            stages = FactorStages(
+                reset=layout.shard(lambda seeds: jax.tree.leaves(reset(seeds))),
+                factors=layout.shard(
+                    lambda leaves: jax.vmap(scene.episode_factors)(
+                        jax.tree.unflatten(treedef, leaves)
+                    )
+                ),
+            )
+        cache[layout.devices] = stages
+    return cache[layout.devices]
 
 
 def make_factor_fn(
     scene: Scene, devices: Sequence[jax.Device] | None = None
 ) -> Callable[[jax.Array], dict[str, jax.Array]] | None:
     """`seeds[n] -> {factor: values[n]}`: the scene's `episode_factors` of each seed's reset
-    state, sharded like the episodes; None when the scene declares no factors. Cached per
-    scene and devices, so the compiled functions are reused.
+    state, sharded like the episodes; None when the scene declares no factors.
 
     The factors see the reset state without the backend's raw data (they read quantities,
     `info`, `obs`, `metrics`, as all task logic does). Two jitted functions, reset then
@@ -307,21 +343,10 @@ def make_factor_fn(
     (a * b + c into an FMA) differently at different batch sizes, which changed factors in the
     last bit with the batch size; reading the materialised reset state keeps them bit-identical.
     """
-    layout = _Layout(tuple(devices or scene.backend.devices()))
-    cache = _FACTOR_FNS.setdefault(scene, {})
-    if layout.devices not in cache:
-        state = jax.eval_shape(scene.reset, jax.random.PRNGKey(0))
-        fn = None
-        if jax.eval_shape(scene.episode_factors, state):
-
-            def reset(seeds: jax.Array) -> Any:
-                s = jax.vmap(scene.reset)(seed_keys(seeds)[0])
-                return s.replace(physics=s.physics.replace(data=None))
-
-            reset_fn, factor_fn = layout.shard(reset), layout.shard(jax.vmap(scene.episode_factors))
-            fn = lambda seeds: factor_fn(reset_fn(seeds))  # noqa: E731
-        cache[layout.devices] = fn
-    return cache[layout.devices]
+    stages = factor_stages(scene, devices)
+    if stages is None:
+        return None
+    return lambda seeds: stages.factors(stages.reset(seeds))
 
 
 def _peak_bytes(compiled: Any) -> int | None:
@@ -417,29 +442,53 @@ class EpisodeRunner:
         """The batch that runs (final once compiled: it may shrink to fit in memory)."""
         return self.per_device * len(self.layout.devices)
 
-    def _export_key(self, args: tuple) -> str | None:
-        """Key of the traced episode in the export cache; None where it cannot be cached (host
-        callbacks in the physics, or a policy that does not say what determines its code)."""
-        scene, policy = self.scene, self.policy
-        if not scene.backend.exportable or policy.cache_key is None:
-            return None
-        return export_cache.cache_key(
-            scene=[type(scene).__module__, type(scene).__qualname__, scene.name],
-            options=dataclasses.asdict(scene.options),
-            model=export_cache.model_digest(scene.mj_model),
-            backend=scene.backend.describe(),
+    def _lower(
+        self, program: str, fn: Callable, args: tuple, cacheable: bool = True, **parts: Any
+    ) -> Any:
+        """`fn.lower(*args)` through the export cache, keyed by `program`, the scene, its
+        backend and devices, `parts` and the arguments; uncached where the backend has host
+        callbacks (they cannot be serialized) or the caller says it is not `cacheable`."""
+        scene, key = self.scene, None
+        if cacheable and scene.backend.exportable:
+            key = export_cache.cache_key(
+                program=program,
+                scene=[type(scene).__module__, type(scene).__qualname__, scene.name],
+                options=dataclasses.asdict(scene.options),
+                model=export_cache.model_digest(scene.mj_model),
+                backend=scene.backend.describe(),
+                devices=[[d.platform, d.device_kind] for d in self.layout.devices],
+                args=export_cache.argument_signature(args),
+                **parts,
+            )
+        return export_cache.lower(fn, args, key, compile_cache.export_dir())
+
+    def _lower_compile(self, params: Any) -> Any:
+        """The compiled episode; cached across processes only for a policy that says what
+        determines its code (`Policy.cache_key`)."""
+        args = (params, self.layout.put_envs(np.zeros(self.n_envs, np.int32)))
+        policy = self.policy
+        return self._lower(
+            "episode",
+            self._fn,
+            args,
+            cacheable=policy.cache_key is not None,
             policy=policy.cache_key,
             max_steps=self.max_steps,
             record=list(self.record),
-            devices=[[d.platform, d.device_kind] for d in self.layout.devices],
-            args=export_cache.argument_signature(args),
-        )
+        ).compile()
 
-    def _lower_compile(self, params: Any) -> Any:
-        args = (params, self.layout.put_envs(np.zeros(self.n_envs, np.int32)))
-        key = self._export_key(args)
-        lowered = export_cache.lower(self._fn, args, key, compile_cache.export_dir())
-        return lowered.compile()
+    def _compile_factors(self) -> Callable[[jax.Array], dict[str, jax.Array]] | None:
+        """The compiled factor stages (see `make_factor_fn`), run once so no chunk pays for
+        them; None when the scene declares no factors."""
+        stages = factor_stages(self.scene, self.layout.devices)
+        if stages is None:
+            return None
+        seeds = self.layout.put_envs(np.zeros(self.n_envs, np.int32))
+        reset = self._lower("factor-reset", stages.reset, (seeds,)).compile()
+        leaves = reset(seeds)
+        factors = self._lower("factors", stages.factors, (leaves,)).compile()
+        jax.block_until_ready(factors(leaves))
+        return lambda chunk: factors(reset(chunk))
 
     def _compile(self, params: Any) -> float:
         layout, t0 = self.layout, time.perf_counter()
@@ -451,10 +500,7 @@ class EpisodeRunner:
             compiled = self._lower_compile(params)
             need = _peak_bytes(compiled)
         self.scene.backend.warm_up()
-        factor_fn = make_factor_fn(self.scene, layout.devices)
-        if factor_fn is not None:  # compile it too, before timing the chunks
-            jax.block_until_ready(factor_fn(layout.put_envs(np.zeros(self.n_envs, np.int32))))
-        self._compiled, self._factor_fn, self._need = compiled, factor_fn, need
+        self._compiled, self._factor_fn, self._need = compiled, self._compile_factors(), need
         return time.perf_counter() - t0
 
     def run(

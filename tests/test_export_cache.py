@@ -1,6 +1,8 @@
 """The traced-episode cache: keyed by everything that decides the program, reused across runs."""
 
 import dataclasses
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 import pytest
@@ -27,19 +29,43 @@ def test_model_digest_follows_the_scene(push_c):
     assert export_cache.model_digest(other.mj_model) != digest
 
 
-def test_uncacheable_runs_have_no_key(push_c, push_mjx):
+class _Stop(Exception):
+    pass
+
+
+def _keys(lower: Callable[[], Any], monkeypatch: pytest.MonkeyPatch) -> list[str | None]:
+    """The export-cache keys `lower` asks for (stopped at the first, before any tracing)."""
+    keys: list[str | None] = []
+
+    def spy(fn, args, key, directory):
+        keys.append(key)
+        raise _Stop
+
+    monkeypatch.setattr(export_cache, "lower", spy)
+    with pytest.raises(_Stop):
+        lower()
+    monkeypatch.undo()
+    return keys
+
+
+def test_uncacheable_runs_have_no_key(push_c, push_mjx, monkeypatch):
     host_callbacks = EpisodeRunner(push_c, make_policy("zero", push_c), n_envs=2, max_steps=2)
-    assert host_callbacks._export_key(()) is None
+    assert _keys(lambda: host_callbacks._lower_compile(None), monkeypatch) == [None]
+    assert _keys(host_callbacks._compile_factors, monkeypatch) == [None]
     no_key = dataclasses.replace(make_policy("zero", push_mjx), cache_key=None)
-    assert EpisodeRunner(push_mjx, no_key, n_envs=2, max_steps=2)._export_key(()) is None
+    runner = EpisodeRunner(push_mjx, no_key, n_envs=2, max_steps=2)
+    assert _keys(lambda: runner._lower_compile(None), monkeypatch) == [None]
+    (factor_key,) = _keys(runner._compile_factors, monkeypatch)  # policy-independent
+    assert factor_key is not None
 
 
-def test_second_run_reuses_the_traced_episode(push_mjx, tmp_path, monkeypatch):
+def test_second_run_reuses_the_traced_programs(push_mjx, tmp_path, monkeypatch):
     monkeypatch.setattr(compile_cache, "_EXPORT_DIR", tmp_path)
     policy = make_policy("zero", push_mjx)
     kw = dict(n_envs=2, max_steps=3)
     first, _ = EpisodeRunner(push_mjx, policy, **kw).run(None, np.arange(2))
-    (entry,) = tmp_path.iterdir()
+    entries = sorted(tmp_path.iterdir())
+    assert len(entries) == 3  # the episode and the two factor stages
 
     def no_tracing(*args, **kwargs):
         raise AssertionError("traced again despite a cached export")
@@ -48,12 +74,14 @@ def test_second_run_reuses_the_traced_episode(push_mjx, tmp_path, monkeypatch):
     second, _ = EpisodeRunner(push_mjx, policy, **kw).run(None, np.arange(2))
     for k in first:
         np.testing.assert_array_equal(first[k], second[k], err_msg=k)
-    entry.write_bytes(b"garbage")  # a corrupt entry is rebuilt, not an error
+    for entry in entries:  # a corrupt entry is rebuilt, not an error
+        entry.write_bytes(b"garbage")
     monkeypatch.undo()
     monkeypatch.setattr(compile_cache, "_EXPORT_DIR", tmp_path)
     third, _ = EpisodeRunner(push_mjx, policy, **kw).run(None, np.arange(2))
-    np.testing.assert_array_equal(first["total_reward"], third["total_reward"])
-    assert entry.read_bytes() != b"garbage"
+    for k in first:
+        np.testing.assert_array_equal(first[k], third[k], err_msg=k)
+    assert all(entry.read_bytes() != b"garbage" for entry in entries)
 
 
 @pytest.mark.parametrize("name", ["zero", "random", "scripted"])

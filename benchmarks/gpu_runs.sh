@@ -22,12 +22,29 @@ case ${1:?stage} in
     for a in c warp; do python3 -m openral_mjx.compare "$out/box_${a}_4096.json" \
       "$out/box_mjx_4096.json" --unpaired --test two-proportion-z --confidence 0.99; done ;;
   mjx-box-bench)  # issue 4: evaluator vs raw MJX on so101_box
-    python3 -m openral_mjx.bench --scene so101_box --backend mjx --n 1024 4096 16384 \
-      --c-max-envs 1024 --out "$out/bench_mjx_box.json" ;;
+    python3 -m openral_mjx.bench --scene so101_box --backend mjx --n ${N:-1024 4096 16384} \
+      --c-max-envs 1024 --out "$out/bench_mjx_box${N:+_${N// /_}}.json" ;;
   mjx-warm)    # issue 7: cold and warm start of an mjx eval (compilation + traced-episode caches)
     for i in 1 2; do ev push_mjx_4096_$i --backend mjx --n-envs 4096; done
-    ev push_warp_4096 --backend warp --n-envs 4096
-    python3 -m openral_mjx.compare "$out/push_mjx_4096_2.json" "$out/push_warp_4096.json" \
+    for i in 1 2; do ev push_warp_4096_$i --backend warp --n-envs 4096; done
+    python3 -m cProfile -s cumtime -m openral_mjx.eval --backend mjx --n-envs 4096 \
+      --out "$out/push_mjx_4096_3.json" --no-breakdown 2>&1 | head -45 | cut -c1-150
+    python3 -m openral_mjx.compare "$out/push_mjx_4096_2.json" "$out/push_warp_4096_2.json" \
       --unpaired --test two-proportion-z --confidence 0.99 ;;
+  warp-million)  # issue 7 / 5: one million seeds in one command on one GPU, peak memory
+    { time python3 benchmarks/peak_memory.py --backend warp --n-envs 65536 --n-episodes 1000000 \
+      --out /tmp/push_warp_1m.json --no-breakdown; } 2>&1 | grep -v "^  " | tail -6
+    ls -l /tmp/push_warp_1m.json  # too big to bring back: keep all but the episodes
+    python3 -c "import json,sys; d=json.load(open(sys.argv[1])); d['episodes']=len(d['episodes'])
+json.dump(d, open(sys.argv[2], 'w'), indent=1)" /tmp/push_warp_1m.json "$out/push_warp_1m.json" ;;
+  scale)       # issue 7 / 3: one GPU vs all local GPUs at N = 65,536 (strong) and 2 x 65,536
+    b=${BACKEND:-warp}; k=${CHUNKS:-2}  # chunks per run (mjx: 1, to fit one call)
+    CUDA_VISIBLE_DEVICES=0 ev scale_${b}_1gpu_65536 --backend "$b" --n-envs 65536 \
+      --n-episodes $((k * 65536))
+    ev scale_${b}_all_65536 --backend "$b" --n-envs 65536 --n-episodes $((k * 65536))
+    ev scale_${b}_all_131072 --backend "$b" --n-envs 131072 --n-episodes $((k * 131072)) ;;
+  mjx-push-bench)  # issue 7 / 6: tabletop_push evaluator vs raw MJX and C
+    python3 -m openral_mjx.bench --backend mjx --n ${N:-4096 16384 65536} \
+      --out "$out/bench_mjx_push${N:+_${N// /_}}.json" ;;
   *) echo "unknown stage $1"; exit 2 ;;
 esac

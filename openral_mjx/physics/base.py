@@ -14,17 +14,26 @@ from typing import Any, ClassVar
 import jax
 import jax.numpy as jnp
 import mujoco
+import numpy as np
 from flax import struct
 
+from openral_mjx import raycast
 from openral_mjx.errors import ConfigError
+from openral_mjx.physics.cameras import RgbSpec, SensorSpec, sensor_key
 
 
 @dataclasses.dataclass(frozen=True)
 class QuantitySpec:
-    """Which named bodies and sites the task logic reads (their world poses)."""
+    """What the task logic reads: named bodies' and sites' world poses, and sensors.
+
+    `sensors` are laser scanners (`raycast.LaserSpec`), depth cameras (`raycast.DepthSpec`)
+    and RGB cameras (`RgbSpec`, rendered on `warp` only); their readings appear in
+    `Quantities.sensors` under each spec's key.
+    """
 
     bodies: tuple[str, ...] = ()
     sites: tuple[str, ...] = ()
+    sensors: tuple[SensorSpec, ...] = ()
 
 
 @dataclasses.dataclass(frozen=True)
@@ -61,6 +70,9 @@ class Quantities:
     body_quat: jax.Array  # (len(spec.bodies), 4)
     site_pos: jax.Array  # (len(spec.sites), 3)
     ok: jax.Array  # () bool: False once the state went non-finite or the engine reset it
+    # Sensor readings by key: laser ranges (n_beams,) and depth images (H, W) in metres, RGB
+    # images (H, W, 3) in [0, 1].
+    sensors: dict[str, jax.Array]
 
 
 @struct.dataclass
@@ -102,7 +114,55 @@ class PhysicsBackend(abc.ABC):
         self.mj_model = spec.copy().compile()
         self.body_ids = tuple(self.mj_model.body(n).id for n in quantities.bodies)
         self.site_ids = tuple(self.mj_model.site(n).id for n in quantities.sites)
+        keys = [sensor_key(s) for s in quantities.sensors]
+        duplicate = sorted({k for k in keys if keys.count(k) > 1})
+        if duplicate:
+            raise ConfigError(f"sensor names must be unique; {duplicate} repeat")
+        self.rendered = self._rendered(quantities.sensors)
+        for s in quantities.sensors:
+            if isinstance(s, RgbSpec) and s.key not in self.rendered:
+                raise ConfigError(
+                    f"rgb camera {s.key!r} needs the warp backend (MuJoCo-Warp's renderer); "
+                    f"backend {self.name!r} has depth cameras and lasers only"
+                )
+        self.ray_sensors = {
+            sensor_key(s): s.build(self.mj_model)
+            for s in quantities.sensors
+            if sensor_key(s) not in self.rendered
+        }
+        rest = raycast.geoms.rest_data(self.mj_model)
+        self._rest_xpos = np.asarray(rest.xpos, np.float32)
+        self._rest_xquat = np.asarray(rest.xquat, np.float32)
         self._setup(spec)
+
+    def _rendered(self, sensors: tuple[SensorSpec, ...]) -> frozenset[str]:
+        """Keys of the sensors this backend renders itself rather than ray casting them (none
+        by default); every `RgbSpec` must be among them."""
+        del sensors
+        return frozenset()
+
+    @property
+    def sensor_bodies(self) -> tuple[int, ...]:
+        """Moving bodies whose poses the ray-cast sensors read."""
+        return tuple(sorted({b for s in self.ray_sensors.values() for b in s.bodies}))
+
+    def read_sensors(self, xpos: jax.Array, xquat: jax.Array) -> dict[str, jax.Array]:
+        """Ray-cast sensor readings of one env from body poses indexed by body id."""
+        out = {}
+        for key, sensor in self.ray_sensors.items():
+            if isinstance(sensor, raycast.Laser):
+                out[key] = raycast.laser_scan(sensor, xpos, xquat)
+            else:
+                out[key] = raycast.depth_image(sensor, xpos, xquat)[0]
+        return out
+
+    def read_sensors_of(self, pos: jax.Array, quat: jax.Array) -> dict[str, jax.Array]:
+        """`read_sensors` from the poses of `sensor_bodies` alone (others at rest)."""
+        ids = np.asarray(self.sensor_bodies, np.int64)
+        xpos, xquat = jnp.asarray(self._rest_xpos), jnp.asarray(self._rest_xquat)
+        if ids.size:
+            xpos, xquat = xpos.at[ids].set(pos), xquat.at[ids].set(quat)
+        return self.read_sensors(xpos, xquat)
 
     def _setup(self, spec: mujoco.MjSpec) -> None:  # noqa: B027 - optional hook
         """Backend-specific construction, after the common fields above are set."""

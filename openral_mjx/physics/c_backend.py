@@ -4,7 +4,9 @@ The whole batch crosses into `mujoco.rollout.Rollout` (a persistent C++ thread p
 `jax.pure_callback`; vmap hands the callback the full batch (`vmap_method="broadcast_all"`).
 The float64 MuJoCo state travels through JAX losslessly as its raw bits (`uint32` pairs), so
 the simulation is exactly MuJoCo C's whatever JAX's default float width. Body and site poses
-come back as `framepos`/`framequat` sensors added to this backend's private copy of the model.
+come back as `framepos`/`framequat` sensors added to this backend's private copy of the model,
+among them the poses of the bodies that ray-cast sensors see; the rays are cast in JAX from
+those poses, as on every backend (`raycast`).
 """
 
 from __future__ import annotations
@@ -88,6 +90,11 @@ class CBackend(PhysicsBackend):
                 objtype=mujoco.mjtObj.mjOBJ_SITE,
                 objname=name,
             )
+        for b in self.sensor_bodies:
+            for kind in (mujoco.mjtSensor.mjSENS_FRAMEPOS, mujoco.mjtSensor.mjSENS_FRAMEQUAT):
+                s.add_sensor(
+                    type=kind, objtype=mujoco.mjtObj.mjOBJ_XBODY, objname=self.mj_model.body(b).name
+                )
         return s.compile()
 
     # ---- host side (numpy, float64) -------------------------------------------------------
@@ -106,8 +113,11 @@ class CBackend(PhysicsBackend):
 
     def _readout(self, states: np.ndarray, sens: np.ndarray, ok: np.ndarray) -> tuple:
         nb, ns = len(self.quantity_spec.bodies), len(self.quantity_spec.sites)
-        body = sens[:, : 7 * nb].reshape(-1, nb, 7)
-        site = sens[:, 7 * nb : 7 * nb + 3 * ns].reshape(-1, ns, 3)
+        nr = len(self.sensor_bodies)
+        n = len(sens)
+        body = sens[:, : 7 * nb].reshape(n, nb, 7)
+        site = sens[:, 7 * nb : 7 * nb + 3 * ns].reshape(n, ns, 3)
+        seen = sens[:, 7 * nb + 3 * ns : 7 * (nb + nr) + 3 * ns].reshape(n, nr, 7)
         qpos = states[:, self._off_qpos : self._off_qpos + self.nq]
         qvel = states[:, self._off_qvel : self._off_qvel + self.nv]
         ok = ok & np.isfinite(states).all(axis=1) & np.isfinite(sens).all(axis=1)
@@ -119,6 +129,8 @@ class CBackend(PhysicsBackend):
             body[:, :, :3].astype(f32),
             body[:, :, 3:].astype(f32),
             site.astype(f32),
+            seen[:, :, :3].astype(f32),
+            seen[:, :, 3:].astype(f32),
             ok,
         )
 
@@ -159,6 +171,7 @@ class CBackend(PhysicsBackend):
 
     def _result_shapes(self, lead: tuple[int, ...]) -> tuple:
         nb, ns = len(self.quantity_spec.bodies), len(self.quantity_spec.sites)
+        nr = len(self.sensor_bodies)
         f32 = jnp.float32
         sd = jax.ShapeDtypeStruct
         return (
@@ -168,13 +181,22 @@ class CBackend(PhysicsBackend):
             sd((*lead, nb, 3), f32),
             sd((*lead, nb, 4), f32),
             sd((*lead, ns, 3), f32),
+            sd((*lead, nr, 3), f32),
+            sd((*lead, nr, 4), f32),
             sd((*lead,), jnp.bool_),
         )
 
-    @staticmethod
-    def _pack(out: Any) -> PhysicsState:
-        bits, qpos, qvel, bpos, bquat, spos, ok = out
-        q = Quantities(qpos=qpos, qvel=qvel, body_pos=bpos, body_quat=bquat, site_pos=spos, ok=ok)
+    def _pack(self, out: Any) -> PhysicsState:
+        bits, qpos, qvel, bpos, bquat, spos, rpos, rquat, ok = out
+        q = Quantities(
+            qpos=qpos,
+            qvel=qvel,
+            body_pos=bpos,
+            body_quat=bquat,
+            site_pos=spos,
+            ok=ok,
+            sensors=self.read_sensors_of(rpos, rquat),
+        )
         return PhysicsState(data=bits, quantities=q)
 
     def init(self, qpos: jax.Array, qvel: jax.Array) -> PhysicsState:

@@ -49,15 +49,19 @@ class MjxBackend(PhysicsBackend):
         """False where this env's physics can no longer be trusted."""
         return all_finite(d.qpos, d.qvel)
 
-    def _quantities(self, d: mjx.Data) -> Quantities:
-        return Quantities(
+    def _readout(self, d: mjx.Data) -> tuple[mjx.Data, Quantities]:
+        """The quantities of `d` (and `d` itself: a backend that renders threads its
+        execution token through the data)."""
+        q = Quantities(
             qpos=d.qpos,
             qvel=d.qvel,
             body_pos=d.xpos[self._body_ids],
             body_quat=d.xquat[self._body_ids],
             site_pos=d.site_xpos[self._site_ids],
             ok=self._data_ok(d),
+            sensors=self.read_sensors(d.xpos, d.xquat),
         )
+        return d, q
 
     def init(self, qpos: jax.Array, qvel: jax.Array) -> PhysicsState:
         # Kinematics alone yields every quantity task logic reads (poses); the first step
@@ -65,8 +69,12 @@ class MjxBackend(PhysicsBackend):
         # the same as after `mjx.forward`, which would double the traced physics and add
         # seconds to every compile.
         d = self._make_data().replace(qpos=qpos, qvel=qvel)
-        d = mjx.kinematics(self.mx, d)
-        return PhysicsState(data=d, quantities=self._quantities(d))
+        d, q = self._readout(self._kinematics(d))
+        return PhysicsState(data=d, quantities=q)
+
+    def _kinematics(self, d: mjx.Data) -> mjx.Data:
+        """Poses from joint positions (what `init` reports before the first step)."""
+        return mjx.kinematics(self.mx, d)
 
     def step(self, state: PhysicsState, ctrl: jax.Array) -> PhysicsState:
         # A diverged env (already counted a failure) is parked at the reference pose, so its
@@ -79,5 +87,5 @@ class MjxBackend(PhysicsBackend):
             ctrl=ctrl,
         )
         d = jax.lax.fori_loop(0, self.n_substeps, lambda _, x: mjx.step(self.mx, x), d)
-        q = self._quantities(d)
+        d, q = self._readout(d)
         return PhysicsState(data=d, quantities=q.replace(ok=q.ok & state.quantities.ok))

@@ -18,8 +18,11 @@ import jax.numpy as jnp
 import mujoco
 
 from openral_mjx.errors import ConfigError
-from openral_mjx.physics.base import all_finite
+from openral_mjx.physics.base import Quantities, all_finite
+from openral_mjx.physics.cameras import SensorSpec, sensor_key
 from openral_mjx.physics.mjx_backend import MjxBackend, mjx
+from openral_mjx.physics.warp_render import WarpCameras, renderable
+from openral_mjx.raycast import LaserSpec
 
 INSTALL_HINT = "pip install 'openral_mjx[warp]' (warp-lang)"
 
@@ -35,6 +38,12 @@ class WarpBackend(MjxBackend):
     name = "warp"
     impl = "warp"
     exportable = False  # Warp's FFI calls are not serializable; it traces in ~1 s anyway
+
+    def _rendered(self, sensors: tuple[SensorSpec, ...]) -> frozenset[str]:
+        """Cameras go through MuJoCo-Warp's batch renderer where one context can serve them
+        (see `warp_render.renderable`); lasers and the other depth cameras are ray cast."""
+        self._render_specs = renderable([s for s in sensors if not isinstance(s, LaserSpec)])
+        return frozenset(sensor_key(s) for s in self._render_specs)
 
     def _setup(self, spec: mujoco.MjSpec) -> None:
         if not warp_installed():
@@ -64,6 +73,11 @@ class WarpBackend(MjxBackend):
         # for condim 6), plus one row per dof for joint limits and one for friction loss.
         self.njmax = 10 * s.contacts_per_env + 2 * m.nv + m.neq * 6
         super()._setup(spec)  # puts the model, which needs the overflow mask above
+        self.cameras = None
+        if self._render_specs:
+            gpus = [d for d in self.devices() if d.platform == "gpu"]
+            names = [f"cuda:{d.local_hardware_id}" for d in gpus] or None
+            self.cameras = WarpCameras(self.mj_model, self.mx, self._render_specs, names)
 
     def _put_model(self) -> mjx.Model:
         mx = mjx.put_model(self.mj_model, impl="warp")
@@ -72,6 +86,17 @@ class WarpBackend(MjxBackend):
 
     def _make_data(self) -> mjx.Data:
         return mjx.make_data(self.mj_model, impl="warp", naconmax=self.naconmax, njmax=self.njmax)
+
+    def _kinematics(self, d: mjx.Data) -> mjx.Data:
+        d = super()._kinematics(d)
+        return d if self.cameras is None else self.cameras.place_cameras(d)
+
+    def _readout(self, d: mjx.Data) -> tuple[mjx.Data, Quantities]:
+        d, q = super()._readout(d)
+        if self.cameras is None:
+            return d, q
+        images, d = self.cameras.render(d)
+        return d, q.replace(sensors={**q.sensors, **images})
 
     def _data_ok(self, d: mjx.Data) -> jax.Array:
         overflow = jnp.bitwise_and(d._impl.overflow, self._fatal)

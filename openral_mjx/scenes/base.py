@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import abc
 import functools
+import types
 from collections.abc import Mapping
 from typing import Any
 
@@ -46,6 +47,8 @@ class Scene(abc.ABC):
     spec: mujoco.MjSpec
     options: Any
     robot_name: str
+    # Array shapes of the sensor slices of the observation (see `obs_shapes`); none by default.
+    sensor_shapes: Mapping[str, tuple[int, ...]] = types.MappingProxyType({})
 
     @abc.abstractmethod
     def reset(self, key: jax.Array) -> State:
@@ -85,12 +88,6 @@ class Scene(abc.ABC):
         del model
         data.qpos[:] = record["qpos"]
 
-    def policy_images(self, state: State) -> dict[str, jax.Array]:
-        """Images the policy observes (name -> (H, W) depth in metres or (H, W, 3) RGB in
-        [0, 1]), shown beside the scene in videos. Default: none (vector observations)."""
-        del state
-        return {}
-
     @property
     def max_steps(self) -> int:
         """Default episode length in control steps (the options' `max_steps`)."""
@@ -105,6 +102,25 @@ class Scene(abc.ABC):
     @abc.abstractmethod
     def obs_layout(self) -> dict[str, tuple[int, int]]:
         """Named slices of the flat observation: name -> (start, size)."""
+
+    @property
+    def obs_shapes(self) -> dict[str, tuple[int, ...]]:
+        """Array shape of each named observation slice: (size,) for a vector, (H, W) for a
+        depth image, (H, W, 3) for RGB; `obs[start:start + size].reshape(shape)`."""
+        shapes = {k: (size,) for k, (_, size) in self.obs_layout.items()}
+        shapes.update(self.sensor_shapes)
+        return shapes
+
+    def sensor_frames(self, state: State) -> dict[str, jax.Array]:
+        """This env's sensor readings by key (depth (H, W) and laser (n,) in metres, RGB
+        (H, W, 3) in [0, 1]): what reports record as an episode's frames. Pure JAX."""
+        return dict(state.physics.quantities.sensors)
+
+    def policy_images(self, state: State) -> dict[str, jax.Array]:
+        """Images the policy observes (name -> (H, W) depth in metres or (H, W, 3) RGB in
+        [0, 1]), shown beside the scene in videos: the images among the sensor readings
+        (none for vector observations)."""
+        return {k: v for k, v in self.sensor_frames(state).items() if v.ndim >= 2}
 
     @functools.cached_property
     def observation_size(self) -> int:

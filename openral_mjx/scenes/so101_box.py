@@ -87,6 +87,7 @@ from openral_mjx.policies.insert_expert import insert_expert
 from openral_mjx.robots import ROBOTS
 from openral_mjx.scenes.base import Scene, State, actuator_joints, obs_slices
 from openral_mjx.scenes.composition import load_robot, look_at_quat, yaw_quat
+from openral_mjx.scenes.sensor_obs import SensorObsOptions, sensor_obs, sensor_shapes
 
 Pair = tuple[float, float]
 Vec3 = tuple[float, float, float]
@@ -104,12 +105,19 @@ _CANDIDATES = 32  # (block, tube) layouts drawn per reset; the first valid one i
 
 
 @dataclasses.dataclass(frozen=True)
-class So101BoxOptions:
+class So101BoxOptions(SensorObsOptions):
     """Every geometry knob and threshold of `so101_box` (SI units: m, kg, rad; world frame).
 
     World frame: origin on the floor at the robot base, +x forward (away from the back wall),
-    +z up. Camera intrinsics are pinhole parameters in pixels.
+    +z up. Camera intrinsics are pinhole parameters in pixels, (cx, cy) in image coordinates
+    where pixel (u, v) covers [u, u + 1) x [v, v + 1) (a centred principal point is (W/2,
+    H/2)). Sensor observations (`obs_*`, off by default), e.g. `obs_depth_cameras:
+    [overhead]`: the overhead camera's depth at `obs_depth_size` (default 64 x 40, its aspect
+    ratio), intrinsics scaled from the camera's.
     """
+
+    obs_depth_size: tuple[int, int] = (64, 40)
+    obs_depth_range: tuple[float, float] = (0.0, 1.0)
 
     robot: str = "so101"
     # Arena: inner size, the robot's base at the middle of the back wall.
@@ -165,6 +173,7 @@ class So101BoxOptions:
     max_steps: int = 300
 
     def __post_init__(self) -> None:
+        super().__post_init__()
         check(self.robot == "so101", f"scene so101_box requires robot 'so101', not {self.robot!r}")
         ranges = [f.name for f in dataclasses.fields(self) if "_spawn_" in f.name]
         for name in ranges:
@@ -290,8 +299,10 @@ def _camera(parent, name: str, pos, target, resolution, focal, principal) -> Non
     cam.resolution = list(resolution)
     cam.sensor_size = [resolution[0] * pitch, resolution[1] * pitch]
     cam.focal_pixel = list(focal)
-    # MuJoCo's principal point is an offset from the image centre.
-    cam.principal_pixel = [principal[0] - resolution[0] / 2, principal[1] - resolution[1] / 2]
+    # MuJoCo's principal point is the image centre's offset from the optical axis: the axis
+    # crosses the image at (W/2 - px, H/2 - py), as its renderer draws it (checked against
+    # MuJoCo's OpenGL renderer in tests/test_depth_camera.py).
+    cam.principal_pixel = [resolution[0] / 2 - principal[0], resolution[1] / 2 - principal[1]]
 
 
 def add_block(spec: mujoco.MjSpec, o: So101BoxOptions) -> mujoco.MjsBody:
@@ -590,16 +601,19 @@ class So101Box(Scene):
         self.options = o = options or So101BoxOptions()
         self.robot = ROBOTS.get("so101")
         self.spec = compose(o)
+        sensors = o.sensor_specs()
         self.backend = make_backend(
             backend,
             self.spec,
             QuantitySpec(
                 bodies=("tube", "block"),
                 sites=(self.robot.ee_site, "grasp", "tube_end_a", "tube_end_b"),
+                sensors=sensors,
             ),
             o.n_substeps,
             settings,
         )
+        self.sensor_shapes = sensor_shapes(sensors)
         m = self.mj_model
         free = {m.joint("tube_joint").id, m.joint("block_joint").id}
         self.robot_joint_ids = np.array([j for j in range(m.njnt) if j not in free])
@@ -620,6 +634,7 @@ class So101Box(Scene):
             "tube_quat": 4,
             "block_pos": 3,
             "block_quat": 4,
+            **{k: math.prod(shape) for k, shape in self.sensor_shapes.items()},
         }
         self._layout = obs_slices(sizes)
 
@@ -761,6 +776,7 @@ class So101Box(Scene):
                 q.body_quat[0],
                 block_pos,
                 block_quat,
+                *sensor_obs(q, self.sensor_shapes),
             ]
         ).astype(jnp.float32)
         obs = jnp.where(diverged, 0.0, obs)

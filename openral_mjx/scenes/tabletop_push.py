@@ -45,17 +45,20 @@ from openral_mjx.policies.push_expert import push_expert
 from openral_mjx.robots import ROBOTS, RobotSpec, user_robot
 from openral_mjx.scenes.base import Scene, State, actuator_joints, obs_slices
 from openral_mjx.scenes.composition import load_robot, look_at_quat, yaw_quat
+from openral_mjx.scenes.sensor_obs import SensorObsOptions, sensor_obs, sensor_shapes
 
 Pair = tuple[float, float]
 Vec3 = tuple[float, float, float]
 
 
 @dataclasses.dataclass(frozen=True)
-class TabletopPushOptions:
+class TabletopPushOptions(SensorObsOptions):
     """Every geometry knob and threshold of `tabletop_push` (SI units, world frame).
 
     The robot base sits on the table top at (`robot_base_x`, `robot_base_y`), facing
-    `robot_base_yaw` (rad); spawn ranges and the goal region are in the world frame.
+    `robot_base_yaw` (rad); spawn ranges and the goal region are in the world frame. Sensor
+    observations (`obs_*`, off by default): depth cameras `overhead` and `front`, RGB on
+    `warp`, and a laser on a robot body or site (a user robot with a mobile base).
     """
 
     robot: str = "so101"
@@ -88,6 +91,7 @@ class TabletopPushOptions:
     camera_target: Vec3 = (0.2, 0.0, 0.75)
 
     def __post_init__(self) -> None:
+        super().__post_init__()
         for name in (
             "cube_spawn_x",
             "cube_spawn_y",
@@ -210,13 +214,15 @@ class TabletopPush(Scene):
         self.robot_name = robot.name
         self.robot = robot
         self.spec = compose(o, robot)
+        sensors = o.sensor_specs()
         self.backend = make_backend(
             backend,
             self.spec,
-            QuantitySpec(bodies=("cube",), sites=(robot.ee_site,)),
+            QuantitySpec(bodies=("cube",), sites=(robot.ee_site,), sensors=sensors),
             o.n_substeps,
             settings,
         )
+        self.sensor_shapes = sensor_shapes(sensors)
         m = self.mj_model
         cube_joint = m.joint("cube_joint")
         # Every joint but the cube's belongs to the robot (the scene adds no others).
@@ -239,6 +245,7 @@ class TabletopPush(Scene):
             "cube_pos": 3,
             "cube_quat": 4,
             "goal_xy": 2,
+            **{k: math.prod(shape) for k, shape in self.sensor_shapes.items()},
         }
         self._layout = obs_slices(sizes)
 
@@ -354,6 +361,7 @@ class TabletopPush(Scene):
                 cube_pos,
                 cube_quat,
                 goal_xy,
+                *sensor_obs(q, self.sensor_shapes),
             ]
         ).astype(jnp.float32)
         obs = jnp.where(diverged, 0.0, obs)

@@ -1,0 +1,168 @@
+"""Camera images from MuJoCo-Warp's batch renderer (`mjx.create_render_context`,
+`mjx.refit_bvh`, `mjx.render`), for the `warp` backend's single-env readout under `vmap`.
+
+A render context fixes the number of worlds it renders, so it cannot be built before the
+batch is known: `WarpCameras.render` is a `jax.custom_batching.custom_vmap` function whose
+batching rule sees the batch size at trace time and renders the whole batch through a context
+built for that size (cached per size; a per-device batch under `shard_map`). Unbatched (e.g.
+shape evaluation), it renders a batch of one.
+
+Depth is planar (along the optical axis) like the ray-cast depth camera, `max_range_m` where
+the renderer saw nothing or a surface outside the camera's range; RGB is float32 in [0, 1].
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import mujoco
+
+from openral_mjx.physics.cameras import RgbSpec
+from openral_mjx.physics.mjx_backend import mjx
+from openral_mjx.raycast import DepthSpec
+from openral_mjx.raycast.mount import Mount, camera
+
+
+@dataclasses.dataclass(frozen=True)
+class _Camera:
+    cam_id: int
+    width: int
+    height: int
+    rgb: tuple[str, ...]  # keys of RGB images of this camera
+    depth: tuple[DepthSpec, ...]
+
+
+def renderable(specs: list[DepthSpec | RgbSpec]) -> list[DepthSpec | RgbSpec]:
+    """The specs one render context can serve: RGB images, and depth images at the camera's
+    own intrinsics, full resolution (stride 1) and with no excluded bodies; one size per
+    camera and one set of geom groups (the first spec's), RGB images first. Depth images left
+    out are ray cast."""
+    sizes: dict[str, tuple[int | None, int | None]] = {}
+    groups = None
+    out = []
+    ordered = [s for s in specs if isinstance(s, RgbSpec)]
+    for s in ordered + [s for s in specs if not isinstance(s, RgbSpec)]:
+        if isinstance(s, DepthSpec) and (s.intrinsics is not None or s.exclude or s.stride != 1):
+            continue
+        size = (s.width, s.height)
+        if sizes.setdefault(s.camera, size) != size or (groups or s.groups) != s.groups:
+            continue
+        groups = groups or s.groups
+        out.append(s)
+    return out
+
+
+class WarpCameras:
+    """Renders the images of `specs` (all servable by one context, see `renderable`)."""
+
+    def __init__(
+        self,
+        mj_model: mujoco.MjModel,
+        mx: mjx.Model,
+        specs: list[DepthSpec | RgbSpec],
+        devices: list[str] | None,
+    ) -> None:
+        self.mj_model, self.mx, self.devices = mj_model, mx, devices
+        self.groups = specs[0].groups
+        cams: dict[int, _Camera] = {}
+        for s in specs:
+            cid = mj_model.camera(s.camera).id
+            res = mj_model.cam_resolution[cid]
+            w, h = int(s.width or res[0]), int(s.height or res[1])
+            c = cams.get(cid, _Camera(cid, w, h, (), ()))
+            if isinstance(s, RgbSpec):
+                c = dataclasses.replace(c, rgb=(*c.rgb, s.key))
+            else:
+                c = dataclasses.replace(c, depth=(*c.depth, s))
+            cams[cid] = c
+        self.cameras = list(cams.values())
+        self._mounts: dict[int, Mount] = {
+            c.cam_id: camera(mj_model, mj_model.camera(c.cam_id).name, "rendered camera")[1]
+            for c in self.cameras
+        }
+        self._contexts: dict[int, Any] = {}
+        self.render = self._make_render()
+
+    def context(self, nworld: int) -> Any:
+        """The render context for batches of `nworld` (built on first use)."""
+        if nworld not in self._contexts:
+            self._contexts[nworld] = mjx.create_render_context(
+                self.mj_model,
+                nworld=nworld,
+                devices=self.devices,
+                cam_active=[c.cam_id for c in self.cameras],
+                cam_res=[(c.width, c.height) for c in self.cameras],
+                render_rgb=[bool(c.rgb) for c in self.cameras],
+                render_depth=[bool(c.depth) for c in self.cameras],
+                enabled_geom_groups=list(self.groups),
+                use_textures=False,
+            )
+        return self._contexts[nworld]
+
+    def place_cameras(self, d: mjx.Data) -> mjx.Data:
+        """`d` with the rendered cameras' poses computed from its body poses (what MuJoCo's
+        `mj_camlight` does for fixed cameras; kinematics alone leaves them unset)."""
+        ids = jnp.asarray(list(self._mounts), jnp.int32)
+        poses = [m.pose(d.xpos, d.xquat) for m in self._mounts.values()]
+        cam_xpos = d.cam_xpos.at[ids].set(jnp.stack([p for p, _ in poses]))
+        cam_xmat = d.cam_xmat.at[ids].set(jnp.stack([r for _, r in poses]))
+        return d.replace(cam_xpos=cam_xpos, cam_xmat=cam_xmat)
+
+    def _render(self, d: mjx.Data, axis_size: int, batched: list[bool]) -> tuple[dict, jax.Array]:
+        """Render a batch of `axis_size` envs (`batched`: which leaves of `d`), re-entering
+        `vmap` so that MJX's own batching rules marshal the data for MuJoCo-Warp. Returns the
+        images and the envs' execution tokens after rendering (the only part of the data
+        rendering changes)."""
+        from mujoco.mjx._src import render_util
+        from mujoco.mjx.warp import render_context
+
+        rc = self.context(axis_size).pytree()
+
+        leaves, treedef = jax.tree.flatten(d)
+
+        def one(leaves: list[jax.Array]) -> tuple[jax.Array, jax.Array, jax.Array]:
+            d = jax.tree.unflatten(treedef, leaves)
+            d = mjx.refit_bvh(self.mx, d, rc)
+            rgb, depth, d = mjx.render(self.mx, d, rc)
+            return rgb, depth, d._impl._jax_token
+
+        in_axes = [0 if b else None for b in batched]
+        rgb, depth, token = jax.vmap(one, in_axes=(in_axes,), axis_size=axis_size)(leaves)
+        # One row per env (an unbatched batch of one comes back with an extra axis).
+        rgb, depth = rgb.reshape(axis_size, -1), depth.reshape(axis_size, -1)
+        token = token.reshape(axis_size)
+        adr = render_context.get(rc).depth_adr.numpy()
+        out: dict[str, jax.Array] = {}
+        for i, c in enumerate(self.cameras):
+            if c.rgb:
+                image = render_util.get_rgb(rc, i, rgb)
+                out.update({key: image for key in c.rgb})
+            for s in c.depth:
+                a = int(adr[i])
+                raw = depth[:, a : a + c.width * c.height].reshape(-1, c.height, c.width)
+                valid = (raw > 0) & (raw >= s.min_range_m) & (raw <= s.max_range_m)
+                out[s.key] = jnp.where(valid, raw, jnp.float32(s.max_range_m))
+        return out, token
+
+    def _make_render(self):
+        @jax.custom_batching.custom_vmap
+        def render_token(d: mjx.Data) -> tuple[dict[str, jax.Array], jax.Array]:
+            out = self._render(d, 1, [False] * len(jax.tree.leaves(d)))
+            return jax.tree.map(lambda x: x[0], out)
+
+        @render_token.def_vmap
+        def _batched(axis_size: int, in_batched: Any, d: mjx.Data):
+            (batched,) = in_batched
+            out = self._render(d, axis_size, jax.tree.leaves(batched))
+            return out, jax.tree.map(lambda _: True, out)
+
+        def render(d: mjx.Data) -> tuple[dict[str, jax.Array], mjx.Data]:
+            """One env's images, and its data carrying the post-render execution token (so
+            the next physics step is ordered after the render)."""
+            images, token = render_token(d)
+            return images, d.tree_replace({"_impl._jax_token": token})
+
+        return render

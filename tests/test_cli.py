@@ -124,7 +124,7 @@ def test_list(monkeypatch, capsys):
         (["--scene", "so101_box", "--opt", "tube_diameter=0.03"], "must be < hole_diameter"),
         (
             ["--policy", "nope"],
-            "unknown policy 'nope'; valid: mlp, mlp-sample, random, scripted, zero",
+            "unknown policy 'nope'; valid: depth_cnn, mlp, mlp-sample, random, scripted, zero",
         ),
         (["--robot", "ur5"], "unknown robot 'ur5'; valid: so101"),
         (["--backend", "gpu"], "unknown backend 'gpu'; valid: auto, mjx, warp, c"),

@@ -20,6 +20,7 @@ from openral_mjx.compare import compare_reports, format_comparison
 from openral_mjx.compile_cache import enable_compilation_cache
 from openral_mjx.errors import ConfigError
 from openral_mjx.evaluate import Evaluation, build_scene, run_evaluation
+from openral_mjx.frames import check_frames, record_frames, save_frames
 from openral_mjx.options import load_yaml, parse_overrides
 from openral_mjx.physics import BACKEND_NAMES, resolve_backend_name
 from openral_mjx.policies import POLICIES
@@ -85,6 +86,10 @@ class EvalArgs:
     """Camera the videos show (default: the scene's choice)."""
     plots: bool = False
     """Write PNG plots beside the report: success by factor, episode lengths, reward curves."""
+    frames: int = 0
+    """Save the sensor readings (depth, RGB, laser) of the first K episodes at every step
+    (re-simulated after the run) to REPORT.frames.npz; the scene must observe sensors (its
+    obs_* options)."""
     compile_cache: bool = True
     """Use JAX's persistent compilation cache (~/.cache/openral_mjx/jax)."""
     list: bool = False
@@ -144,6 +149,7 @@ def _reproduce(args: EvalArgs, backend: str, out: Path) -> str:
         ("--threads", args.threads),
         ("--contacts-per-env", args.contacts_per_env),
         ("--factor-bins", args.factor_bins if args.factor_bins != 5 else None),
+        ("--frames", args.frames or None),
     ):
         if value is not None:
             argv += [flag, str(value)]
@@ -188,6 +194,7 @@ def run(args: EvalArgs) -> int:
         threads=args.threads,
         contacts_per_env=args.contacts_per_env,
     )
+    check_frames(scene, args.frames)
     camera, gl, no_gl = "", "", None
     if want_video:
         camera = args.video_camera or default_camera(scene)
@@ -228,6 +235,12 @@ def run(args: EvalArgs) -> int:
             step_rewards=args.plots,
         )
     report = evaluation.report
+    stem = out.with_suffix("")
+    frames_file = out.with_name(f"{stem.name}.frames.npz")
+    if args.frames:
+        with stderr.status(f"re-simulating {min(args.frames, report.n_episodes)} episode(s)"):
+            arrays = record_frames(evaluation, args.frames, frames_file.name)
+        save_frames(frames_file, arrays)
     save_report(report, out)
     print(report.summary())
     if report.n_envs < min(args.n_envs, report.n_episodes):
@@ -243,8 +256,9 @@ def run(args: EvalArgs) -> int:
     if baseline is not None:
         rc = compare_reports(baseline, report)
         print(format_comparison(rc, baseline, report, (str(args.compare_with), str(out))))
+    if args.frames:
+        print(f"frames: {frames_file}")
     print(f"report: {out}")
-    stem = out.with_suffix("")
     if args.plots:
         for path in write_plots(report, stem, evaluation.arrays["rewards"]):
             print(f"plot: {path}")

@@ -184,8 +184,9 @@ def make_trace_fn(
     `(params, seeds[n], slots[n]) -> (EpisodeArrays[n], trace)`: the env with slot k < n_traced
     fills row k of every `trace` leaf, shaped `(n_traced, max_steps + 1, ...)` with step 0 the
     reset state; other envs have slot >= n_traced. The trace holds `frame` (the scene's
-    `frame_record`), `images` (its `policy_images`), `action` (that led to the step; zero at
-    step 0), `reward` and `live` (1 while the episode ran, 0 after its end). Only the
+    `frame_record`), `images` (its `policy_images`), `sensors` (its `sensor_frames`), `action`
+    (that led to the step; zero at step 0), `reward` and `live` (1 while the episode ran, 0
+    after its end). Only the
     traced envs' rows are kept (a scatter per step), so tracing costs little memory at any
     batch size. Under `shard_map`, rows are summed over the `env` mesh axis (one device holds
     each traced env, the others add zeros), so the trace comes back whole on every device.
@@ -195,6 +196,7 @@ def make_trace_fn(
         return {
             "frame": jax.vmap(scene.frame_record)(state),
             "images": jax.vmap(scene.policy_images)(state),
+            "sensors": jax.vmap(scene.sensor_frames)(state),
             "action": action,
             "reward": state.reward,
             "live": live.astype(jnp.int32),

@@ -32,6 +32,10 @@ class EpisodeResult:
     `budget_violations` counts this episode's steps taken while the batch step was slower.
     `metadata` carries seed, scene, task, robot, policy, backend, diverged, first_success_step
     and `factors` (the scene's randomised factors of this episode, name -> value).
+    `frames` is None, or (for the first episodes of a run with `--frames`, see
+    `openral_mjx.frames`) one entry per sensor, `{"sensor", "file", "array", "shape", "dtype",
+    "reproduced"}`: its readings at every step from the reset state to the episode's end,
+    stored as `array` in the `.npz` `file` beside the report.
     """
 
     success: bool

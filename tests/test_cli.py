@@ -152,6 +152,15 @@ def test_list(monkeypatch, capsys):
         (["--factor-bins", "0"], "factor_bins must be a positive integer, got 0"),
         (["--compare-with", "missing.json"], "report 'missing.json' does not exist"),
         (["--video", "-1"], "--video and --video-failures must be >= 0, got -1, 0"),
+        (["--frames", "1"], "frames: scene 'tabletop_push' observes no sensors"),
+        (
+            ["--frames", "-1", "--opt", "obs_depth_cameras=[front]"],
+            "frames must be >= 0, got -1",
+        ),
+        (
+            ["--opt", "obs_depth_cameras=[top]"],
+            "unknown camera 'top'; valid: overhead, front",
+        ),
         (
             ["--video", "1", "--video-camera", "top"],
             "unknown camera 'top'; valid: overhead, front",
@@ -261,3 +270,24 @@ def test_missing_viz_extra_names_the_install(monkeypatch, capsys, tmp_path):
     assert err.strip() == (
         "error: videos and plots need PyAV; install them with pip install 'openral_mjx[viz]'"
     )
+
+
+def test_sensor_frames_next_to_the_report(monkeypatch, capsys, tmp_path):
+    """--frames K: a depth camera in tabletop_push's observation, the first episode's depth
+    images saved beside the report and referenced from it, the reproducing command kept."""
+    from openral_mjx.frames import load_frames
+
+    out_path = tmp_path / "rep.json"
+    argv = ["--n-envs", "2", "--max-steps", "3", "--policy", "zero", "--threads", "1"]
+    opts = ["--opt", "obs_depth_cameras=[front]", "obs_depth_size=[8,6]"]
+    code, out, err = run_cli(
+        monkeypatch, capsys, *argv, *opts, "--frames", "1", "--out", str(out_path)
+    )
+    assert code == 0, err
+    assert f"frames: {tmp_path / 'rep.frames.npz'}" in out
+    report = load_report(out_path)
+    assert "--frames 1" in report.command
+    assert report.episodes[0].frames[0]["array"] == "seed0/depth_front"
+    assert report.episodes[1].frames is None
+    depth = load_frames(out_path, report)[0]["depth_front"]
+    assert depth.shape == (4, 6, 8) and 0 < depth.min() < 3.0

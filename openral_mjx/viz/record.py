@@ -29,7 +29,8 @@ class EpisodeTrace:
     """One episode, step by step (step 0 is the reset state; `steps + 1` entries each).
 
     `frame`: the scene's `frame_record` per step; `images`: the policy's image observations;
-    `action`: the action that led to each step (zero at step 0); `reward` per step.
+    `sensors`: the scene's sensor readings (`Scene.sensor_frames`); `action`: the action that
+    led to each step (zero at step 0); `reward` per step.
     `outcome` is "success", "failure" or "diverged". `resimulated` says how the episode was
     re-run and `reproduced` whether it matched the evaluated episode exactly.
     """
@@ -41,6 +42,7 @@ class EpisodeTrace:
     resimulated: str
     frame: dict[str, np.ndarray]
     images: dict[str, np.ndarray]
+    sensors: dict[str, np.ndarray]
     action: np.ndarray
     reward: np.ndarray
 
@@ -106,6 +108,7 @@ def trace_episodes(evaluation: Evaluation, seeds: Sequence[int]) -> list[Episode
                 resimulated=how,
                 frame=cut(trace["frame"]),
                 images=cut(trace["images"]),
+                sensors=cut(trace["sensors"]),
                 action=np.asarray(trace["action"][k, :n]),
                 reward=np.asarray(trace["reward"][k, :n]),
             )

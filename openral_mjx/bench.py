@@ -1,4 +1,5 @@
-"""`python -m openral_mjx.bench`: evaluator throughput against raw physics ceilings, one run.
+"""`python -m openral_mjx.bench`: evaluator throughput against raw physics ceilings, one run
+(`--rays`: the ray-cast sensors against raw `mjx.ray` and `mj_multiRay`, see `bench_rays`).
 
 Per batch size N, on the same scene model and substeps, measured side by side:
 
@@ -62,6 +63,18 @@ class BenchArgs:
     """Contact buffer per env of the warp backend."""
     out: Path = Path("results/bench.json")
     compile_cache: bool = True
+    rays: bool = False
+    """Measure the ray-cast sensors (laser, depth) in rays/s instead of the evaluator, against
+    vmap(mjx.ray) and mj_multiRay on all cores, on the default JAX device (see
+    openral_mjx/bench_rays.py; --backend and --max-steps do not apply)."""
+    laser_frame: str = "ee"
+    """--rays: body or site carrying the benchmarked laser."""
+    camera: str | None = None
+    """--rays: camera of the benchmarked depth images (default: the scene's first)."""
+    geom_counts: tuple[int, ...] = (8, 16, 32, 64)
+    """--rays: scene sizes (geoms) of the cost-versus-geom-count sweep."""
+    repeats: int = 5
+    """--rays: timed calls per measurement (median)."""
 
 
 def raw_mjx(scene, actions: np.ndarray) -> tuple[float, float]:
@@ -120,7 +133,52 @@ def peak_memory_bytes() -> int | None:
     return stats.get("peak_bytes_in_use")
 
 
+def run_rays_bench(args: BenchArgs) -> int:
+    """`--rays`: sensor rays/s against raw `mjx.ray` and `mj_multiRay` (bench_rays)."""
+    from openral_mjx.bench_rays import run_rays
+
+    if not args.n or min(args.n) < 1 or args.repeats < 1 or min(args.geom_counts, default=2) < 2:
+        raise ConfigError(
+            f"--n, --repeats must be positive and --geom-counts >= 2, got {args.n}, "
+            f"{args.repeats}, {args.geom_counts}"
+        )
+    if args.compile_cache:
+        enable_compilation_cache()
+    threads = args.threads or default_threads()
+    scene = make_scene(args.scene, backend="c", settings=PhysicsSettings(threads=threads))
+    result = run_rays(
+        scene,
+        args.n,
+        laser_frame=args.laser_frame,
+        camera=args.camera,
+        geom_counts=args.geom_counts,
+        threads=threads,
+        repeats=args.repeats,
+        log=lambda line: print(line, flush=True),
+    )
+    device = jax.devices()[0]
+    argv = ["--rays", "--scene", args.scene, "--n", *map(str, args.n), "--laser-frame"]
+    argv += [args.laser_frame, "--geom-counts", *map(str, args.geom_counts)]
+    if args.camera:
+        argv += ["--camera", args.camera]
+    write_json_atomic(
+        args.out,
+        {
+            "scene": args.scene,
+            "device": f"{device.platform}: {device.device_kind}",
+            **result,
+            "versions": package_versions(),
+            "created_at": dt.datetime.now(dt.UTC).isoformat(timespec="seconds"),
+            "command": command_line("openral_mjx.bench", argv),
+        },
+    )
+    print(f"results: {args.out}")
+    return 0
+
+
 def run(args: BenchArgs) -> int:
+    if args.rays:
+        return run_rays_bench(args)
     backend = resolve_backend_name(args.backend)
     if not args.n or min(args.n) < 1 or (args.max_steps is not None and args.max_steps < 1):
         raise ConfigError(

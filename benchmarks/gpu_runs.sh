@@ -47,5 +47,24 @@ json.dump(d, open(sys.argv[2], 'w'), indent=1)" /tmp/push_warp_1m.json "$out/pus
   mjx-push-bench)  # issue 7 / 6: tabletop_push evaluator vs raw MJX and C
     python3 -m openral_mjx.bench --backend mjx --n ${N:-4096 16384 65536} \
       --out "$out/bench_mjx_push${N:+_${N// /_}}.json" ;;
+  rays)        # issue 5: ray-cast sensors vs raw vmap(mjx.ray) and 16-core mj_multiRay, geom sweep
+    python3 -m openral_mjx.bench --rays --scene so101_box --n 1024 4096 \
+      --out "$out/bench_rays_box.json" ;;
+  rays-push)   # issue 5: the same on tabletop_push (~10 geoms in view; its laser mostly misses)
+    python3 -m openral_mjx.bench --rays --scene tabletop_push --n 1024 4096 --geom-counts 8 \
+      --out "$out/bench_rays_push.json" ;;
+  rays-eval-mjx)   # issue 5: so101_box at 4,096 envs, overhead depth (ray cast) off / on / CNN
+    d=(--scene so101_box --backend mjx --n-envs 4096)
+    ev box_mjx_nodepth "${d[@]}"
+    ev box_mjx_depth "${d[@]}" --opt 'obs_depth_cameras=[overhead]'
+    ev box_mjx_depthcnn "${d[@]}" --opt 'obs_depth_cameras=[overhead]' --policy depth_cnn \
+      --frames 2 ;;
+  rays-eval-warp)  # issue 5: the same on warp (depth from MuJoCo-Warp's renderer) + agreement
+    d=(--scene so101_box --backend warp --n-envs 4096)
+    ev box_warp_nodepth "${d[@]}"
+    ev box_warp_depth "${d[@]}" --opt 'obs_depth_cameras=[overhead]'
+    ev box_warp_depthcnn "${d[@]}" --opt 'obs_depth_cameras=[overhead]' --policy depth_cnn \
+      --frames 2
+    python3 benchmarks/depth_agreement.py --n 1024 --steps 20 ;;
   *) echo "unknown stage $1"; exit 2 ;;
 esac

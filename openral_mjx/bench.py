@@ -159,6 +159,7 @@ def run_rays_bench(args: BenchArgs) -> int:
     device = jax.devices()[0]
     argv = ["--rays", "--scene", args.scene, "--n", *map(str, args.n), "--laser-frame"]
     argv += [args.laser_frame, "--geom-counts", *map(str, args.geom_counts)]
+    argv += ["--repeats", str(args.repeats), "--threads", str(threads)]
     if args.camera:
         argv += ["--camera", args.camera]
     write_json_atomic(

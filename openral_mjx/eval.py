@@ -70,6 +70,8 @@ class EvalArgs:
     contacts_per_env: int | None = None
     """Contact buffer per env of the warp backend (default 32); overflowing envs count as
     diverged."""
+    devices: int | None = None
+    """Shard envs over at most this many local devices (default: every GPU for mjx/warp)."""
     out: Path | None = None
     """Report path (default: results/SCENE_POLICY_TIMESTAMP.json)."""
     factor_bins: int = 5
@@ -148,6 +150,7 @@ def _reproduce(args: EvalArgs, backend: str, out: Path) -> str:
         ("--config", args.config),
         ("--threads", args.threads),
         ("--contacts-per-env", args.contacts_per_env),
+        ("--devices", args.devices),
         ("--factor-bins", args.factor_bins if args.factor_bins != 5 else None),
         ("--frames", args.frames or None),
     ):
@@ -193,6 +196,7 @@ def run(args: EvalArgs) -> int:
         n_envs=args.n_envs,
         threads=args.threads,
         contacts_per_env=args.contacts_per_env,
+        devices=args.devices,
     )
     check_frames(scene, args.frames)
     camera, gl, no_gl = "", "", None

@@ -105,10 +105,14 @@ def build_scene(
     n_envs: int = 1024,
     threads: int | None = None,
     contacts_per_env: int | None = None,
+    devices: int | None = None,
 ) -> Scene:
-    """Scene `name` on `backend`, its buffers sized for batches of `n_envs`."""
+    """Scene `name` on `backend`, its buffers sized for batches of `n_envs`, on at most
+    `devices` devices (default: all the backend can use)."""
     check_counts(n_envs, 1, 1)
-    settings = PhysicsSettings(threads=threads, batch_size=n_envs)
+    if devices is not None and devices < 1:
+        raise ConfigError(f"devices must be >= 1, got {devices}")
+    settings = PhysicsSettings(threads=threads, batch_size=n_envs, max_devices=devices)
     if contacts_per_env is not None:
         settings = dataclasses.replace(settings, contacts_per_env=contacts_per_env)
     return make_scene(name, options, backend=backend, settings=settings)
@@ -162,6 +166,7 @@ def run_evaluation(
     backend: str = "auto",
     threads: int | None = None,
     contacts_per_env: int | None = None,
+    devices: int | None = None,
     options: Mapping[str, Any] | None = None,
     command: str = "",
     on_chunk: Callable[[int, int], None] | None = None,
@@ -186,6 +191,7 @@ def run_evaluation(
             n_envs=n_envs,
             threads=threads,
             contacts_per_env=contacts_per_env,
+            devices=devices,
         )
     pol = make_policy(policy, scene)
     steps = scene.max_steps if max_steps is None else max_steps

@@ -137,6 +137,7 @@ def test_list(monkeypatch, capsys):
         (["--robot-mjcf", "missing.xml"], "robot MJCF 'missing.xml' does not exist"),
         (["--threads", "0"], "threads must be >= 1, got 0"),
         (["--contacts-per-env", "0"], "contacts_per_env must be >= 1, got 0"),
+        (["--devices", "0"], "devices must be >= 1, got 0"),
         (["--target-halfwidth", "0"], "target_halfwidth must lie in (0, 0.5), got 0.0"),
         (["--target-halfwidth", "0.5"], "target_halfwidth must lie in (0, 0.5), got 0.5"),
         (["--target-halfwidth", "nan"], "target_halfwidth must lie in (0, 0.5), got nan"),

@@ -31,7 +31,8 @@ def test_warp_on_four_devices_equals_one_device():
     )
     assert proc.returncode == 0, proc.stderr[-2000:]
     result = json.loads(proc.stdout.strip().splitlines()[-1])
-    assert result["n_devices"] == [4, 1]
+    assert result["n_devices"] == [4, 1, 2]  # all, one, and the settings' cap of two
     assert result["n_envs"] == [8, 8] and result["chunks"] == [2, 2]
     assert all(result["equal"].values()), result["equal"]
+    assert all(result["capped_equal"].values()), result["capped_equal"]
     assert any(result["success"])  # episodes long enough to differ if anything were off

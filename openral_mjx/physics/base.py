@@ -46,15 +46,20 @@ class PhysicsSettings:
             and constraint capacity); the runner rejects larger per-device batches.
         contacts_per_env: `warp` contact capacity per env (a buffer overflow marks the env
             diverged, never silently wrong).
+        max_devices: use at most this many of the backend's devices (the first ones); None:
+            all of them.
     """
 
     threads: int | None = None
     batch_size: int = 4096
     contacts_per_env: int = 32
+    max_devices: int | None = None
 
     def __post_init__(self) -> None:
-        if self.threads is not None and self.threads < 1:
-            raise ConfigError(f"threads must be >= 1, got {self.threads}")
+        for name in ("threads", "max_devices"):
+            value = getattr(self, name)
+            if value is not None and value < 1:
+                raise ConfigError(f"{name} must be >= 1, got {value}")
         for name in ("batch_size", "contacts_per_env"):
             if getattr(self, name) < 1:
                 raise ConfigError(f"{name} must be >= 1, got {getattr(self, name)}")
@@ -180,7 +185,12 @@ class PhysicsBackend(abc.ABC):
         counted as compile time rather than in the first chunk's run time."""
 
     def devices(self) -> list[jax.Device]:
-        """The devices the runner shards envs over (default: every device JAX sees)."""
+        """The devices the runner shards envs over: the backend's candidates, at most
+        `settings.max_devices` of them."""
+        return self._candidate_devices()[: self.settings.max_devices]
+
+    def _candidate_devices(self) -> list[jax.Device]:
+        """Every device this backend can run on (default: every device JAX sees)."""
         return list(jax.devices())
 
     @property

@@ -222,7 +222,7 @@ class CBackend(PhysicsBackend):
         """The model MuJoCo C steps: the scene plus this backend's pose sensors."""
         return self._model
 
-    def devices(self) -> list[jax.Device]:
+    def _candidate_devices(self) -> list[jax.Device]:
         """The host CPU alone: the physics is on the host (one thread pool), so the loop around
         it stays there too rather than bouncing every control step through an accelerator."""
         return [jax.devices("cpu")[0]]

@@ -118,10 +118,11 @@ class WarpBackend(MjxBackend):
         )
         self._warm = True
 
-    def devices(self) -> list[jax.Device]:
-        """CUDA GPUs where there are any, else the CPU (Warp's CPU mode, for tests)."""
+    def _candidate_devices(self) -> list[jax.Device]:
+        """CUDA GPUs where there are any, else the CPU devices (Warp's CPU mode, for tests;
+        one unless XLA is told to split the host)."""
         gpus = [d for d in jax.devices() if d.platform == "gpu"]
-        return gpus or [jax.devices("cpu")[0]]
+        return gpus or list(jax.devices("cpu"))
 
     @property
     def max_batch(self) -> int:

@@ -19,13 +19,18 @@ kw = dict(seeds=np.arange(10), max_steps=int(sys.argv[2]))
 devices = jax.devices()
 sharded, t4 = run_seeds(scene, policy, None, n_envs=8, devices=devices, **kw)
 single, t1 = run_seeds(scene, policy, None, n_envs=8, devices=devices[:1], **kw)
+capped_scene = TabletopPush(
+    backend=backend, settings=PhysicsSettings(batch_size=8, max_devices=2)
+)  # the --devices cap: the first two devices
+capped, t2 = run_seeds(capped_scene, make_policy("scripted", capped_scene), None, n_envs=8, **kw)
 print(
     json.dumps(
         {
-            "n_devices": [t4.n_devices, t1.n_devices],
+            "n_devices": [t4.n_devices, t1.n_devices, t2.n_devices],
             "n_envs": [t4.n_envs, t1.n_envs],
             "chunks": [len(t4.chunk_s), len(t1.chunk_s)],
             "equal": {k: bool(np.array_equal(sharded[k], single[k])) for k in sharded},
+            "capped_equal": {k: bool(np.array_equal(capped[k], single[k])) for k in capped},
             "success": sharded["success"].tolist(),
         }
     )

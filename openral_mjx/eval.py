@@ -22,10 +22,10 @@ from openral_mjx.errors import ConfigError
 from openral_mjx.evaluate import Evaluation, build_scene, run_evaluation
 from openral_mjx.frames import check_frames, record_frames, save_frames
 from openral_mjx.options import load_yaml, parse_overrides
-from openral_mjx.physics import BACKEND_NAMES, resolve_backend_name
+from openral_mjx.physics import BACKEND_NAMES
 from openral_mjx.policies import POLICIES
 from openral_mjx.robots import ROBOTS
-from openral_mjx.scenes import SCENES, check_robot
+from openral_mjx.scenes import SCENES, check_robot, resolve_scene_backend
 from openral_mjx.schema import EvalReport, load_report, save_report
 from openral_mjx.viz import require_viz
 from openral_mjx.viz.gl import GLUnavailable, camera_id, gl_backend
@@ -104,7 +104,7 @@ def _listing() -> str:
             f"scenes:   {', '.join(SCENES.names())}",
             f"policies: {', '.join(POLICIES.names())}",
             f"robots:   {', '.join(ROBOTS.names())}",
-            f"backends: {', '.join(BACKEND_NAMES)}",
+            f"backends: {', '.join(BACKEND_NAMES)} (MuJoCo scenes), host (host scenes)",
         ]
     )
 
@@ -167,7 +167,7 @@ def run(args: EvalArgs) -> int:
         return 0
     SCENES.get(args.scene)
     POLICIES.get(args.policy.partition(":")[0])
-    backend = resolve_backend_name(args.backend)
+    backend = resolve_scene_backend(args.scene, args.backend)
     options = _scene_options(args)
     stamp = dt.datetime.now().strftime("%Y%m%d-%H%M%S")
     policy_tag = re.sub(r"[^A-Za-z0-9_.-]+", "-", args.policy).strip("-")  # mlp:a/b: mlp-a-b

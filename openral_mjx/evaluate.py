@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import datetime as dt
 import importlib.metadata
@@ -18,7 +19,7 @@ from openral_mjx.errors import ConfigError
 from openral_mjx.options import to_dict
 from openral_mjx.physics import PhysicsSettings
 from openral_mjx.policies import Policy, make_policy
-from openral_mjx.rollout import FACTOR_PREFIX, RunTiming, check_counts, run_seeds
+from openral_mjx.rollout import FACTOR_PREFIX, INFO_PREFIX, RunTiming, check_counts, run_seeds
 from openral_mjx.scenes import Scene, make_scene
 from openral_mjx.schema import EpisodeResult, EvalReport, SequentialInfo, TaskRow
 from openral_mjx.sequential import RULE, SequentialDesign, sufficient_episodes
@@ -39,7 +40,11 @@ def package_versions() -> dict[str, str]:
 
 
 def device_description(scene: Scene) -> str:
-    """What ran the physics: the JAX devices for `mjx`/`warp`, the CPU thread pool for `c`."""
+    """What ran the physics: the JAX devices for `mjx`/`warp`, the CPU thread pool for `c`,
+    worker processes for host scenes."""
+    label = getattr(scene.backend, "device_label", None)
+    if label is not None:
+        return label()
     if scene.backend.name == "c":
         return f"cpu: MuJoCo C, {scene.backend.describe()['threads']} threads"
     devices = scene.backend.devices()
@@ -58,8 +63,17 @@ def episode_results(
     timing: RunTiming,
     control_dt: float,
     metadata: Mapping[str, Any],
+    *,
+    policy_latency: bool = False,
+    describe: Callable[[dict[str, Any]], dict[str, Any]] | None = None,
 ) -> list[EpisodeResult]:
-    """Turn the runner's per-env arrays into `EpisodeResult`s (latency from chunk timings)."""
+    """Turn the runner's per-env arrays into `EpisodeResult`s.
+
+    Latency: with `policy_latency`, the policy's own per-step latency as the runner
+    accumulated it (mean and max over the episode's steps, steps over the control period);
+    otherwise the batch's per-step time from chunk timings. `describe` turns a seed's
+    `info/...` values into metadata entries (the scene's `describe_episode`).
+    """
     budget_ms = 1000 * control_dt
     chunk_ms = [round(1000 * s / timing.scan_steps, 4) for s in timing.chunk_s]
     max_ms = max(chunk_ms)
@@ -68,6 +82,15 @@ def episode_results(
         for k, v in arrays.items()
         if k.startswith(FACTOR_PREFIX)
     }
+    info = {
+        k.removeprefix(INFO_PREFIX): v.tolist()
+        for k, v in arrays.items()
+        if k.startswith(INFO_PREFIX)
+    }
+    if policy_latency:
+        lat_sum = arrays["latency_sum_ms"].tolist()
+        lat_max = arrays["latency_max_ms"].tolist()
+        lat_over = arrays["latency_violations"].tolist()
     rewards = float32_values(arrays["total_reward"])
     steps = arrays["steps"].tolist()
     success = arrays["success"].tolist()
@@ -75,22 +98,29 @@ def episode_results(
     first = arrays["first_success_step"].tolist()
     results = []
     for i, seed in enumerate(seeds.tolist()):
-        mean_ms = chunk_ms[i // timing.n_envs]
+        if policy_latency:
+            mean_ms = round(lat_sum[i] / max(steps[i], 1), 4)
+            ep_max_ms, violations = round(lat_max[i], 4), lat_over[i]
+        else:
+            mean_ms = chunk_ms[i // timing.n_envs]
+            ep_max_ms, violations = max_ms, steps[i] if mean_ms > budget_ms else 0
+        extra = {} if not info else (describe or dict)({k: v[i] for k, v in info.items()})
         results.append(
             EpisodeResult(
                 success=success[i],
                 steps=steps[i],
                 total_reward=rewards[i],
                 mean_step_latency_ms=mean_ms,
-                max_step_latency_ms=max_ms,
+                max_step_latency_ms=ep_max_ms,
                 latency_budget_ms=budget_ms,
-                budget_violations=steps[i] if mean_ms > budget_ms else 0,
+                budget_violations=violations,
                 metadata={
                     **metadata,
                     "seed": seed,
                     "diverged": diverged[i],
                     "first_success_step": first[i],
                     "factors": {k: v[i] for k, v in factors.items()},
+                    **extra,
                 },
             )
         )
@@ -124,7 +154,9 @@ class Evaluation:
 
     `seeds` are the seeds the run was given (a sequential run may have stopped before the last
     ones); `arrays` the runner's per-seed arrays of the episodes that ran (`rewards`, per step,
-    only when asked for); `timing` its batch layout and timings.
+    only when asked for); `timing` its batch layout and timings. `close()` (or leaving a `with`
+    block) releases what `run_evaluation` built for it (a host scene's worker processes, a
+    policy server); a scene or policy passed in built stays the caller's.
     """
 
     report: EvalReport
@@ -134,11 +166,23 @@ class Evaluation:
     seeds: np.ndarray
     arrays: dict[str, np.ndarray]
     timing: RunTiming
+    resources: contextlib.ExitStack = dataclasses.field(
+        default_factory=contextlib.ExitStack, repr=False
+    )
+
+    def close(self) -> None:
+        self.resources.close()
+
+    def __enter__(self) -> Evaluation:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
 
 
 def evaluate(
     scene: str | Scene = "tabletop_push",
-    policy: str = "scripted",
+    policy: str | Policy = "scripted",
     **kwargs: Any,
 ) -> EvalReport:
     """Evaluate `policy` on seeds `seed .. seed + n_episodes - 1` and return the report.
@@ -147,14 +191,17 @@ def evaluate(
     instead: chunks of `n_envs` seeds until the success-rate interval's half-width is at most
     the target, or `max_episodes` (default: the worst case, rate 1/2); the report's interval
     is then exact for that stopping rule (see `openral_mjx.sequential`). Raises `ConfigError`
-    for unknown names, bad options and non-positive counts.
+    for unknown names, bad options and non-positive counts. `scene` and `policy` are registry
+    names (built here and closed afterwards) or built objects (left open for the caller, e.g.
+    one policy over every task of a suite).
     """
-    return run_evaluation(scene, policy, **kwargs).report
+    with run_evaluation(scene, policy, **kwargs) as evaluation:
+        return evaluation.report
 
 
 def run_evaluation(
     scene: str | Scene = "tabletop_push",
-    policy: str = "scripted",
+    policy: str | Policy = "scripted",
     *,
     n_envs: int = 1024,
     n_episodes: int | None = None,
@@ -183,43 +230,58 @@ def run_evaluation(
         raise ConfigError(f"seed must be >= 0, got {seed}")
     if factor_bins < 1:
         raise ConfigError(f"factor_bins must be a positive integer, got {factor_bins}")
-    if isinstance(scene, str):
-        scene = build_scene(
+    owned = contextlib.ExitStack()
+    with owned:  # on an error, close what this call built (worker processes)
+        if isinstance(scene, str):
+            scene = build_scene(
+                scene,
+                options,
+                backend=backend,
+                n_envs=n_envs,
+                threads=threads,
+                contacts_per_env=contacts_per_env,
+                devices=devices,
+            )
+            owned.callback(scene.close)
+        if isinstance(policy, str):
+            pol = make_policy(policy, scene)
+            if pol.close is not None:
+                owned.callback(pol.close)
+        else:
+            pol, policy = policy, policy.name
+        steps = scene.max_steps if max_steps is None else max_steps
+        requested = np.arange(seed, seed + n_episodes, dtype=np.int64)
+        params, _ = pol.init(jax.random.PRNGKey(seed), scene.observation_spec)
+        arrays, timing = run_seeds(
             scene,
-            options,
-            backend=backend,
+            pol,
+            params,
+            seeds=requested,
             n_envs=n_envs,
-            threads=threads,
-            contacts_per_env=contacts_per_env,
-            devices=devices,
+            max_steps=steps,
+            on_chunk=on_chunk,
+            until=rule,
+            record=("rewards",) if step_rewards else (),
         )
-    pol = make_policy(policy, scene)
-    steps = scene.max_steps if max_steps is None else max_steps
-    requested = np.arange(seed, seed + n_episodes, dtype=np.int64)
-    params, _ = pol.init(
-        jax.random.PRNGKey(seed), jax.ShapeDtypeStruct((scene.observation_size,), np.float32)
-    )
-    arrays, timing = run_seeds(
-        scene,
-        pol,
-        params,
-        seeds=requested,
-        n_envs=n_envs,
-        max_steps=steps,
-        on_chunk=on_chunk,
-        until=rule,
-        record=("rewards",) if step_rewards else (),
-    )
-    n_episodes = len(arrays["success"])
-    seeds = requested[:n_episodes]
-    meta = {
-        "scene": scene.name,
-        "task": scene.task,
-        "robot": scene.robot_name,
-        "policy": policy,
-        "backend": scene.backend.name,
-    }
-    episodes = episode_results(arrays, seeds, timing, scene.control_dt, meta)
+        n_episodes = len(arrays["success"])
+        seeds = requested[:n_episodes]
+        meta = {
+            "scene": scene.name,
+            "task": scene.task,
+            "robot": scene.robot_name,
+            "policy": policy,
+            "backend": scene.backend.name,
+        }
+        episodes = episode_results(
+            arrays,
+            seeds,
+            timing,
+            scene.control_dt,
+            meta,
+            policy_latency=pol.latency_ms is not None,
+            describe=scene.describe_episode,
+        )
+        resources = owned.pop_all()  # handed to the Evaluation
     successes = int(arrays["success"].sum())
     low, high = wilson_interval(successes, n_episodes)
     sequential = None
@@ -271,7 +333,7 @@ def run_evaluation(
         episodes=episodes,
         sequential=sequential,
     )
-    return Evaluation(report, scene, pol, params, requested, arrays, timing)
+    return Evaluation(report, scene, pol, params, requested, arrays, timing, resources)
 
 
 class SequentialRule:

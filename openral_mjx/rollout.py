@@ -43,6 +43,11 @@ class EpisodeArrays:
     first_success_step: jax.Array  # int32, -1 if never
     total_reward: jax.Array  # float32
     diverged: jax.Array  # bool: non-finite or engine-reset state; never a success
+    # Per-step policy latency over the episode's steps (zeros for policies that report none):
+    latency_sum_ms: jax.Array  # float32
+    latency_max_ms: jax.Array  # float32
+    latency_violations: jax.Array  # int32: steps whose latency exceeded the control period
+    info: dict[str, jax.Array]  # the scene's `episode_info` of the final state
 
 
 export.register_pytree_node_serialization(
@@ -95,21 +100,27 @@ def _episode_scan(
     Returns the episode outcomes, the reset state and, per step, `record(state, new_state,
     action, live)` of the batch (the states before and after the step, stacked on a leading
     step axis; None without `record`). `live` is False for envs whose episode had already ended
-    before the step.
+    before the step. A policy with `latency_ms` has its per-step latency accumulated over each
+    episode's live steps against the control period.
     """
     reset_keys, policy_keys = seed_keys(seeds)
-    state = jax.vmap(scene.reset)(reset_keys)
-    _, pstate0 = policy.init(
-        jax.random.PRNGKey(0), jax.ShapeDtypeStruct(state.obs.shape[1:], state.obs.dtype)
-    )
+    state = jax.vmap(scene.reset_with_seed)(seeds, reset_keys)
+    obs_spec = jax.tree.map(lambda x: jax.ShapeDtypeStruct(x.shape[1:], x.dtype), state.obs)
+    _, pstate0 = policy.init(jax.random.PRNGKey(0), obs_spec)
     n = seeds.shape[0]
     pstate = jax.tree.map(lambda x: jnp.broadcast_to(x, (n, *jnp.shape(x))), pstate0)
+    zero = jnp.zeros(n, jnp.float32)
+    budget_ms = 1000.0 * scene.control_dt
     acc = EpisodeArrays(
         success=state.metrics["success"],
         steps=jnp.zeros(n, jnp.int32),
         first_success_step=jnp.where(state.metrics["success"], 0, -1).astype(jnp.int32),
-        total_reward=jnp.zeros(n, jnp.float32),
+        total_reward=zero,
         diverged=state.metrics["diverged"],
+        latency_sum_ms=zero,
+        latency_max_ms=zero,
+        latency_violations=jnp.zeros(n, jnp.int32),
+        info={},
     )
 
     def body(carry, t):
@@ -122,6 +133,9 @@ def _episode_scan(
         live = ~done
         success = new_state.metrics["success"] & live
         diverged = new_state.metrics["diverged"] & live
+        latency = jnp.zeros_like(acc.latency_sum_ms)
+        if policy.latency_ms is not None:
+            latency = jnp.where(live, jax.vmap(policy.latency_ms)(new_pstate), 0.0)
         acc = EpisodeArrays(
             success=acc.success | success,
             steps=acc.steps + live.astype(jnp.int32),
@@ -130,6 +144,10 @@ def _episode_scan(
             ),
             total_reward=acc.total_reward + jnp.where(live, new_state.reward, 0.0),
             diverged=acc.diverged | diverged,
+            latency_sum_ms=acc.latency_sum_ms + latency,
+            latency_max_ms=jnp.maximum(acc.latency_max_ms, latency),
+            latency_violations=acc.latency_violations + (latency > budget_ms),
+            info={},
         )
         # Finished envs keep simulating in lock-step with the batch, but nothing after their
         # end counts. Freezing them instead would copy the whole physics state every step
@@ -138,10 +156,10 @@ def _episode_scan(
         out = None if record is None else record(state, new_state, action, live)
         return (new_state, new_pstate, acc, new_done), out
 
-    (_, _, acc, _), records = jax.lax.scan(
+    (last, _, acc, _), records = jax.lax.scan(
         body, (state, pstate, acc, state.done), jnp.arange(max_steps, dtype=jnp.int32)
     )
-    return acc, state, records
+    return acc.replace(info=jax.vmap(scene.episode_info)(last)), state, records
 
 
 def make_episode_fn(
@@ -294,6 +312,15 @@ class _Layout:
 
 _FACTOR_STAGES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 FACTOR_PREFIX = "factor/"  # run_seeds' key for an episode factor's values
+INFO_PREFIX = "info/"  # run_seeds' key for a value of the scene's `episode_info`
+
+
+def outcome_arrays(acc: EpisodeArrays) -> dict[str, np.ndarray]:
+    """`EpisodeArrays` as numpy arrays by field name, `info` entries under `INFO_PREFIX`."""
+    names = [f.name for f in dataclasses.fields(acc) if f.name != "info"]
+    row = {name: np.asarray(getattr(acc, name)) for name in names}
+    row.update({INFO_PREFIX + k: np.asarray(v) for k, v in acc.info.items()})
+    return row
 
 
 @dataclasses.dataclass(frozen=True)
@@ -314,7 +341,9 @@ def factor_stages(scene: Scene, devices: Sequence[jax.Device] | None = None) -> 
     if layout.devices not in cache:
 
         def reset(seeds: jax.Array) -> Any:
-            s = jax.vmap(scene.reset)(seed_keys(seeds)[0])
+            s = jax.vmap(scene.reset_with_seed)(seeds, seed_keys(seeds)[0])
+            if s.physics is None:  # a host scene: its simulators' state lives in its workers
+                return s
             return s.replace(physics=s.physics.replace(data=None))
 
         shape = jax.eval_shape(reset, jax.ShapeDtypeStruct((1,), jnp.int32))
@@ -502,6 +531,7 @@ class EpisodeRunner:
             compiled = self._lower_compile(params)
             need = _peak_bytes(compiled)
         self.scene.backend.warm_up()
+        self.scene.prepare(self.n_envs)  # host scenes start their workers (not timed as a run)
         self._compiled, self._factor_fn, self._need = compiled, self._compile_factors(), need
         return time.perf_counter() - t0
 
@@ -515,9 +545,9 @@ class EpisodeRunner:
         """Roll out every seed; return per-seed numpy arrays and timings (`compile_s` is 0 once
         compiled).
 
-        The arrays are the `EpisodeArrays` fields by name, per factor the scene declares (see
-        `make_factor_fn`) its values under `FACTOR_PREFIX + name`, and the recorded traces as
-        `(n_seeds, max_steps, ...)`.
+        The arrays are the `EpisodeArrays` fields by name (see `outcome_arrays`), per factor the
+        scene declares (see `make_factor_fn`) its values under `FACTOR_PREFIX + name`, and the
+        recorded traces as `(n_seeds, max_steps, ...)`.
 
         `on_chunk(done_episodes, total_episodes)` is called once compiled and after each chunk.
         `until(arrays_so_far)`, if given, is called after each chunk; when it returns True no
@@ -549,7 +579,7 @@ class EpisodeRunner:
             factors = {} if self._factor_fn is None else layout.get(self._factor_fn(chunk))
             chunk_s.append(time.perf_counter() - t)
             acc, traces = out if self.record else (out, {})
-            row = {f.name: np.asarray(getattr(acc, f.name)) for f in dataclasses.fields(acc)}
+            row = outcome_arrays(acc)
             row.update({FACTOR_PREFIX + k: np.asarray(v) for k, v in factors.items()})
             row.update({k: np.swapaxes(np.asarray(v), 0, 1) for k, v in traces.items()})
             outs.append(row)
@@ -649,6 +679,5 @@ def trace_seeds(
             position = int(np.flatnonzero(slots == slot)[0])
             outcomes[i] = jax.tree.map(lambda x, p=position: np.asarray(x)[p], acc)
             traces[i] = jax.tree.map(lambda x, k=slot: np.asarray(x)[k], trace)
-    fields = [f.name for f in dataclasses.fields(EpisodeArrays)]
-    arrays = {f: np.array([getattr(o, f) for o in outcomes]) for f in fields}
+    arrays = outcome_arrays(jax.tree.map(lambda *xs: np.stack(xs), *outcomes))
     return arrays, jax.tree.map(lambda *xs: np.stack(xs), *traces)

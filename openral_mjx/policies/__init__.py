@@ -43,6 +43,8 @@ def _random(scene: Any, arg: str | None) -> Policy:
 @POLICIES.register("scripted")
 def _scripted(scene: Any, arg: str | None) -> Policy:
     _no_arg("scripted", arg)
+    if not hasattr(scene, "scripted_policy"):
+        raise ConfigError(f"scene {scene.name!r} has no scripted policy; try zero, random")
     return scene.scripted_policy()
 
 

@@ -2,7 +2,9 @@
 
 `init(key, obs_spec) -> (params, policy_state)` runs once per evaluation (params are shared by
 all envs; the runner broadcasts `policy_state` to every env). `act(params, policy_state, obs,
-key) -> (action, policy_state)` is single-env; the runner vmaps it.
+key) -> (action, policy_state)` is single-env; the runner vmaps it. A policy that runs outside
+JAX (a torch model behind a host callback) measures its own latency per step and exposes it
+through `latency_ms(policy_state) -> ms`, which the runner accumulates per episode.
 """
 
 from __future__ import annotations
@@ -27,3 +29,5 @@ class Policy:
     # What, besides the scene and this package's source, decides the code `act` traces to; a
     # traced episode may be reused across runs under it (see `export_cache`). None: never.
     cache_key: str | None = None
+    latency_ms: Callable[[Any], jax.Array] | None = None
+    close: Callable[[], None] | None = None  # releases host resources (a policy server)

@@ -9,20 +9,25 @@ from typing import Any
 
 from openral_mjx.errors import ConfigError
 from openral_mjx.options import from_mapping
-from openral_mjx.physics import PhysicsSettings
+from openral_mjx.physics import PhysicsSettings, resolve_backend_name
 from openral_mjx.registry import Registry
 from openral_mjx.scenes.base import Scene, State
 from openral_mjx.scenes.so101_box import So101Box, So101BoxOptions
+from openral_mjx.scenes.libero import LiberoOptions, libero
+from openral_mjx.scenes.point_reach import PointReachOptions, point_reach
+from openral_mjx.scenes.robosuite_scene import RobosuiteOptions, robosuite
 from openral_mjx.scenes.tabletop_push import TabletopPush, TabletopPushOptions
 
 
 @dataclasses.dataclass(frozen=True)
 class SceneEntry:
-    """How to build a scene: its options class, its constructor, and a fixed robot if any."""
+    """How to build a scene: its options class, its constructor, a fixed robot if any, and
+    the physics backends it runs on (None: every MuJoCo backend; host scenes: `host`)."""
 
     options_cls: type
     build: Callable[..., Scene]
     fixed_robot: str | None = None
+    backends: tuple[str, ...] | None = None
 
 
 SCENES: Registry[SceneEntry] = Registry("scene")
@@ -38,6 +43,28 @@ def check_robot(name: str, robot: str | None, robot_mjcf: str | None = None) -> 
     asked = robot if robot_mjcf is None else f"mjcf:{Path(str(robot_mjcf)).name}"
     if asked not in (None, fixed):
         raise ConfigError(f"scene {name!r} requires robot {fixed!r}, not {asked!r}")
+
+
+SCENES.register("point_reach")(SceneEntry(PointReachOptions, point_reach, backends=("host",)))
+SCENES.register("libero")(SceneEntry(LiberoOptions, libero, "panda", backends=("host",)))
+SCENES.register("robosuite")(SceneEntry(RobosuiteOptions, robosuite, "panda", backends=("host",)))
+
+
+def resolve_scene_backend(name: str, backend: str) -> str:
+    """The backend scene `name` runs on for the `--backend` value `backend` (`auto` resolved);
+    a backend the scene cannot run on is a `ConfigError`."""
+    entry = SCENES.get(name)
+    if entry.backends is None:
+        if backend == "host":
+            raise ConfigError(f"scene {name!r} runs on a MuJoCo backend, not 'host'")
+        return resolve_backend_name(backend)
+    if backend == "auto":
+        return entry.backends[0]
+    if backend not in entry.backends:
+        raise ConfigError(
+            f"scene {name!r} runs on backend {', '.join(entry.backends)}, not {backend!r}"
+        )
+    return backend
 
 
 def make_scene(
@@ -68,4 +95,5 @@ __all__ = [
     "TabletopPushOptions",
     "check_robot",
     "make_scene",
+    "resolve_scene_backend",
 ]

@@ -58,6 +58,28 @@ class Scene(abc.ABC):
     def step(self, state: State, action: jax.Array) -> State:
         """Apply one control action for one control period."""
 
+    def reset_with_seed(self, seed: jax.Array, key: jax.Array) -> State:
+        """What the runner calls: `reset(key)`, with the episode's seed for scenes that pick
+        from a fixed list of initial states by seed (e.g. LIBERO's). Default: ignore it."""
+        del seed
+        return self.reset(key)
+
+    def episode_info(self, state: State) -> dict[str, jax.Array]:
+        """Per-episode scalars read from the final state, for the episode's metadata (decoded by
+        `describe_episode`). Pure JAX, one env. Default: none."""
+        del state
+        return {}
+
+    def describe_episode(self, info: dict[str, Any]) -> dict[str, Any]:
+        """Metadata entries for one episode from its `episode_info` values (host side)."""
+        return dict(info)
+
+    def prepare(self, n_envs: int) -> None:  # noqa: B027 - an optional hook
+        """Host-side setup before the run is timed (e.g. start simulator workers)."""
+
+    def close(self) -> None:  # noqa: B027 - an optional hook
+        """Release host resources (worker processes); the scene may be prepared again."""
+
     def episode_factors(self, state: State) -> dict[str, jax.Array]:
         """The episode's randomised factors, read from its reset state: name -> scalar.
 
@@ -127,6 +149,11 @@ class Scene(abc.ABC):
         """Derived from `reset` by shape evaluation, never hand-counted."""
         shape = jax.eval_shape(self.reset, jax.random.PRNGKey(0)).obs.shape
         return int(shape[-1])
+
+    @functools.cached_property
+    def observation_spec(self) -> Any:
+        """Shapes and dtypes of one env's observation (an array, or a dict of arrays)."""
+        return jax.eval_shape(self.reset, jax.random.PRNGKey(0)).obs
 
     @property
     def control_dt(self) -> float:

@@ -1,0 +1,233 @@
+"""A batch of N gym-style envs spread over worker processes, stepped all at once.
+
+Env slot i (the i-th env of the runner's batch) lives in one worker; workers hold contiguous
+blocks of slots and step theirs in turn, all workers in parallel. A batch call sends every
+worker its request first, then collects the replies, each with a deadline. Faults stay local:
+an env that raises fails its own slot; a worker that crashes or misses its deadline is killed
+and fails the slots it held; the others finish. Failed and finished slots are not stepped
+again: they return their last observation. Errors are numbered (1, 2, ...) so that the jitted
+loop can carry them as integers; `messages[code - 1]` is the text.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import os
+import tempfile
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from openral_mjx.host.pool import RemoteError, Worker, WorkerFailure
+
+
+@dataclasses.dataclass(frozen=True)
+class BatchConfig:
+    """What to run in the workers and how.
+
+    Attributes:
+        python: interpreter of the workers' environment.
+        factory: ``module:callable`` returning one gym-style env (see `gym_batch`).
+        kwargs: the factory's keyword arguments (JSON types).
+        observation: name -> (shape, dtype string) of every observation array.
+        action_size: length of an action.
+        n_workers: worker processes (at most one per env); None: one per core.
+        step_timeout_s: deadline of one batched step.
+        reset_timeout_s: deadline of one batched reset (the first builds the envs).
+        env: extra environment variables for the workers.
+    """
+
+    python: str
+    factory: str
+    kwargs: dict[str, Any]
+    observation: dict[str, tuple[tuple[int, ...], str]]
+    action_size: int
+    n_workers: int | None = None
+    step_timeout_s: float = 60.0
+    reset_timeout_s: float = 600.0
+    env: dict[str, str] = dataclasses.field(default_factory=dict)
+
+
+def default_workers() -> int:
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # pragma: no cover - non-Linux
+        return os.cpu_count() or 1
+
+
+class EnvBatch:
+    """N envs in worker processes; `reset` and `step` take and return whole-batch arrays."""
+
+    def __init__(self, config: BatchConfig) -> None:
+        self.config = config
+        self.messages: list[str] = []
+        self._workers: list[Worker | None] = []
+        self._blocks: list[list[int]] = []
+        self._n = 0
+        self._logs = Path(tempfile.mkdtemp(prefix="openral_mjx_workers_"))
+        self._last: dict[str, Any] = {}
+        self._ended = np.zeros(0, bool)
+
+    @property
+    def n(self) -> int:
+        return self._n
+
+    @property
+    def log_dir(self) -> Path:
+        return self._logs
+
+    def _error(self, message: str) -> int:
+        self.messages.append(message)
+        return len(self.messages)
+
+    def _start(self, w: int) -> Worker:
+        c = self.config
+        worker = Worker(c.python, c.env, self._logs / f"worker{w}.log", name=f"worker {w}")
+        init = {
+            "op": "init",
+            "factory": "openral_mjx.host.gym_batch:GymBatch",
+            "kwargs": {
+                "factory": c.factory,
+                "kwargs": c.kwargs,
+                "n": len(self._blocks[w]),
+                "observation": {k: [list(s), d] for k, (s, d) in c.observation.items()},
+            },
+        }
+        worker.call(init, c.reset_timeout_s)
+        return worker
+
+    def resize(self, n: int) -> None:
+        """Lay out `n` slots over the workers (restarting them if the layout changes)."""
+        if n == self._n and self._workers:
+            return
+        self.close()
+        n_workers = max(1, min(n, self.config.n_workers or default_workers()))
+        bounds = np.linspace(0, n, n_workers + 1).round().astype(int)
+        self._blocks = [list(range(bounds[w], bounds[w + 1])) for w in range(n_workers)]
+        self._workers = [None] * n_workers
+        self._n = n
+        self._ended = np.ones(n, bool)
+        self._last = {
+            "obs": {
+                k: np.zeros((n, *s), np.dtype(d)) for k, (s, d) in self.config.observation.items()
+            },
+            "reward": np.zeros(n, np.float32),
+            "terminated": np.ones(n, bool),
+            "success": np.zeros(n, bool),
+            "error": np.zeros(n, np.int32),
+        }
+
+    def start(self, n: int) -> None:
+        """Lay out `n` slots and start every worker with its envs built (a failure here is
+        raised: nothing has run yet)."""
+        self.resize(n)
+        for w, worker in enumerate(self._workers):
+            if worker is None:
+                worker = self._workers[w] = self._start(w)
+            worker.call({"op": "call", "method": "build"}, self.config.reset_timeout_s)
+
+    def _fail_block(self, w: int, message: str) -> None:
+        code = self._error(message)
+        for i in self._blocks[w]:
+            self._last["error"][i] = code
+            self._last["terminated"][i] = True
+            self._ended[i] = True
+        worker = self._workers[w]
+        if worker is not None:
+            worker.kill()
+        self._workers[w] = None
+
+    def _exchange(self, requests: dict[int, dict[str, Any]], timeout: float) -> dict[int, Any]:
+        """Send each worker its request, then collect every reply (failures are recorded)."""
+        sent = []
+        for w, msg in requests.items():
+            worker = self._workers[w]
+            try:
+                if worker is None or not worker.alive:
+                    worker = self._workers[w] = self._start(w)
+                worker.send(msg)
+                sent.append(w)
+            except (WorkerFailure, RemoteError) as e:
+                self._fail_block(w, str(e))
+        replies = {}
+        for w in sent:
+            worker = self._workers[w]
+            assert worker is not None
+            try:
+                replies[w] = worker.receive(timeout)
+            except (WorkerFailure, RemoteError) as e:
+                self._fail_block(w, str(e))
+        return replies
+
+    def _store(self, w: int, slots: list[int], reply: dict[str, Any]) -> None:
+        last = self._last
+        for j, i in enumerate(slots):
+            for k in last["obs"]:
+                last["obs"][k][i] = reply["obs"][k][j]
+            last["reward"][i] = reply["reward"][j]
+            last["success"][i] = reply["success"][j]
+            last["terminated"][i] = reply["terminated"][j]
+            err = reply["errors"][j]
+            last["error"][i] = 0 if err is None else self._error(f"env {i}: {err}")
+            self._ended[i] = bool(reply["terminated"][j])
+
+    def _result(self, rewards: np.ndarray) -> dict[str, Any]:
+        last = self._last
+        return {
+            "obs": {k: v.copy() for k, v in last["obs"].items()},
+            "reward": rewards,
+            "terminated": last["terminated"].copy(),
+            "success": last["success"].copy(),
+            "error": last["error"].copy(),
+        }
+
+    def reset(self, seeds: np.ndarray, options: list[dict[str, Any]]) -> dict[str, Any]:
+        """Reset all `len(seeds)` slots (a new chunk of episodes): slot i gets seeds[i]."""
+        self.resize(len(seeds))
+        self._last["error"][:] = 0
+        self._last["success"][:] = False
+        requests = {
+            w: {
+                "op": "call",
+                "method": "reset",
+                "kwargs": {
+                    "slots": list(range(len(block))),
+                    "seeds": [int(seeds[i]) for i in block],
+                    "options": [options[i] for i in block],
+                },
+            }
+            for w, block in enumerate(self._blocks)
+        }
+        for w, reply in self._exchange(requests, self.config.reset_timeout_s).items():
+            self._store(w, self._blocks[w], reply)
+        return self._result(np.zeros(self._n, np.float32))
+
+    def step(self, actions: np.ndarray, done: np.ndarray) -> dict[str, Any]:
+        """Step every slot that is neither `done` (per the caller) nor ended (per its env)."""
+        active = ~(self._ended | np.asarray(done, bool))
+        self._ended |= np.asarray(done, bool)
+        requests, stepped = {}, {}
+        for w, block in enumerate(self._blocks):
+            local = [j for j, i in enumerate(block) if active[i]]
+            if local:
+                rows = np.stack([actions[block[j]] for j in local]).astype(np.float32)
+                requests[w] = {
+                    "op": "call",
+                    "method": "step",
+                    "kwargs": {"slots": local, "actions": rows},
+                }
+                stepped[w] = [block[j] for j in local]
+        rewards = np.zeros(self._n, np.float32)
+        for w, reply in self._exchange(requests, self.config.step_timeout_s).items():
+            self._store(w, stepped[w], reply)
+            rewards[stepped[w]] = reply["reward"]
+        return self._result(rewards)
+
+    def close(self) -> None:
+        for worker in self._workers:
+            if worker is not None:
+                with contextlib.suppress(Exception):
+                    worker.close()
+        self._workers = [None] * len(self._workers)

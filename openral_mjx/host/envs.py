@@ -1,0 +1,194 @@
+"""Worker environments: Python virtual environments created on first use and reused.
+
+Simulators and policies that cannot share the evaluator's environment (LIBERO pins
+``robosuite==1.4.0`` and ``mujoco<3.9``; lerobot pins ``torch<2.11``; the evaluator runs mujoco
+4 and jax on numpy 2) run in worker processes under an environment of their own. Each is a
+venv under ``$OPENRAL_MJX_ENVS`` (default ``~/.cache/openral_mjx/envs``), created on first use
+with ``python -m venv`` and pip, with a progress message and no prompt, then marked ready with
+the recipe it was built from (a changed recipe rebuilds it). ``core`` is the evaluator's own
+interpreter. ``OPENRAL_MJX_PYTHON_<NAME>`` (name upper-cased, ``-`` as ``_``) points a name at
+an interpreter you manage yourself instead.
+
+``python -m openral_mjx.host.envs create NAME`` creates one ahead of time (CI does), ``list``
+shows them.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import fcntl
+import hashlib
+import json
+import os
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+from openral_mjx.errors import ConfigError, unknown
+
+
+@dataclasses.dataclass(frozen=True)
+class EnvRecipe:
+    """How to build a worker environment: a Python version and pip requirements, installed
+    in order (one pip call per step, so a step can pin what the next must not replace)."""
+
+    python: str
+    steps: tuple[tuple[str, ...], ...]
+    note: str
+
+    def digest(self) -> str:
+        return hashlib.sha256(json.dumps(dataclasses.asdict(self)).encode()).hexdigest()[:16]
+
+
+# lerobot's own `libero` extra installs hf-libero (LIBERO, robosuite 1.4.0, mujoco 3.x) next to
+# lerobot and its torch, so one environment serves LIBERO and robosuite workers and the lerobot
+# policy server. torch and torchvision are pinned to the registry's CUDA builds lerobot 0.4.4
+# accepts (they run on a CPU too; the local CPU-only torch 2.13 has no matching torchvision).
+LEROBOT_LIBERO = EnvRecipe(
+    python="3.11",
+    steps=(("torch==2.10.*", "torchvision==0.25.*", "lerobot[libero]==0.4.4"),),
+    note="lerobot 0.4.4 + LIBERO (hf-libero 0.1.4, robosuite 1.4.0, mujoco 3.x), torch 2.10",
+)
+
+RECIPES: dict[str, EnvRecipe | None] = {"core": None, "lerobot-libero": LEROBOT_LIBERO}
+READY = "openral_mjx_env.json"
+
+
+def envs_root() -> Path:
+    return Path(os.environ.get("OPENRAL_MJX_ENVS", Path.home() / ".cache/openral_mjx/envs"))
+
+
+def env_dir(name: str) -> Path:
+    return envs_root() / name
+
+
+def _override(name: str) -> str | None:
+    return os.environ.get(f"OPENRAL_MJX_PYTHON_{name.upper().replace('-', '_')}")
+
+
+def create_command(name: str) -> str:
+    return f"python -m openral_mjx.host.envs create {name}"
+
+
+def env_python(name: str) -> Path:
+    return env_dir(name) / "bin" / "python"
+
+
+def is_ready(name: str) -> bool:
+    """Whether environment `name` exists and was built from the current recipe."""
+    recipe = _recipe(name)
+    if recipe is None or _override(name):
+        return True
+    marker = env_dir(name) / READY
+    try:
+        return json.loads(marker.read_text()).get("digest") == recipe.digest()
+    except (OSError, ValueError):
+        return False
+
+
+def _recipe(name: str) -> EnvRecipe | None:
+    if name not in RECIPES:
+        raise unknown("worker environment", name, sorted(RECIPES))
+    return RECIPES[name]
+
+
+def _find_python(version: str) -> str:
+    for candidate in (f"python{version}", "python3"):
+        path = shutil.which(candidate)
+        if path is None:
+            continue
+        out = subprocess.run(
+            [path, "-c", "import sys; print('%d.%d' % sys.version_info[:2])"],
+            capture_output=True,
+            text=True,
+        )
+        if out.stdout.strip() == version:
+            return path
+    raise ConfigError(f"worker environments need Python {version} (python{version} not on PATH)")
+
+
+def ensure_env(name: str, *, log=None) -> str:
+    """The interpreter of worker environment `name`, creating the environment if needed.
+
+    Creation prints progress to `log` (default stderr) and never prompts; a failure raises
+    `ConfigError` naming the command to retry and the log with pip's output.
+    """
+    recipe = _recipe(name)
+    if recipe is None:
+        return sys.executable
+    override = _override(name)
+    if override:
+        return override
+    if is_ready(name):
+        return str(env_python(name))
+    log = log or sys.stderr
+    root = envs_root()
+    root.mkdir(parents=True, exist_ok=True)
+    with open(root / f".{name}.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)  # another process may be creating it right now
+        if not is_ready(name):
+            _create(name, recipe, log)
+    return str(env_python(name))
+
+
+def _create(name: str, recipe: EnvRecipe, log) -> None:
+    target = env_dir(name)
+    pip_log = envs_root() / f"{name}.install.log"
+    print(
+        f"openral_mjx: creating worker environment {name!r} ({recipe.note}) in {target}; "
+        f"one time, several minutes and several GB; pip output in {pip_log}",
+        file=log,
+        flush=True,
+    )
+    start = time.monotonic()
+    shutil.rmtree(target, ignore_errors=True)
+    python = _find_python(recipe.python)
+    commands = [[python, "-m", "venv", str(target)]]
+    pip = [str(env_python(name)), "-m", "pip", "install", "--disable-pip-version-check"]
+    commands += [[*pip, *step] for step in recipe.steps]
+    with open(pip_log, "w") as out:
+        for i, cmd in enumerate(commands):
+            label = "venv" if i == 0 else " ".join(cmd[len(pip) :])
+            print(f"openral_mjx: [{i + 1}/{len(commands)}] {label}", file=log, flush=True)
+            out.write(f"$ {' '.join(cmd)}\n")
+            out.flush()
+            rc = subprocess.run(cmd, stdout=out, stderr=subprocess.STDOUT).returncode
+            if rc != 0:
+                tail = pip_log.read_text(errors="replace").strip().splitlines()[-1:]
+                raise ConfigError(
+                    f"could not create worker environment {name!r}: {' '.join(cmd)} exited "
+                    f"with {rc} ({' '.join(tail)}); see {pip_log}; retry with "
+                    f"`{create_command(name)}`"
+                )
+    seconds = time.monotonic() - start
+    (target / READY).write_text(json.dumps({"digest": recipe.digest(), "seconds": seconds}))
+    print(f"openral_mjx: worker environment {name!r} ready in {seconds:.0f} s", file=log)
+
+
+def main(argv: list[str] | None = None) -> int:
+    import argparse
+
+    parser = argparse.ArgumentParser(prog="python -m openral_mjx.host.envs")
+    sub = parser.add_subparsers(dest="cmd", required=True)
+    sub.add_parser("list")
+    create = sub.add_parser("create")
+    create.add_argument("name", choices=sorted(n for n, r in RECIPES.items() if r is not None))
+    args = parser.parse_args(argv)
+    if args.cmd == "list":
+        for name, recipe in RECIPES.items():
+            where = sys.executable if recipe is None else env_dir(name)
+            state = "ready" if is_ready(name) else "not created"
+            print(f"{name:16s} {state:12s} {where}")
+        return 0
+    try:
+        print(ensure_env(args.name))
+    except ConfigError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

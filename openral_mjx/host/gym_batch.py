@@ -1,0 +1,114 @@
+"""The envs of one worker: gym-style envs from one factory, stepped in turn (runs in a worker).
+
+A factory returns an env with the gymnasium API: ``reset(seed=int, options=dict) -> (obs,
+info)`` and ``step(action) -> (obs, reward, terminated, truncated, info)``; success is
+``info["is_success"]`` (or ``info["success"]``). Observations are a dict of arrays (or one
+array, named ``obs``) that must match the declared shapes, so every reply has fixed shapes.
+An env that raises fails alone: its slot reports the error and the worker carries on.
+Standard library and numpy only (plus whatever the factory imports).
+"""
+
+from __future__ import annotations
+
+import traceback
+from typing import Any
+
+import numpy as np
+
+from openral_mjx.host.worker import load
+
+
+class GymBatch:
+    """`n` envs built by `factory(**kwargs)`, created on their first reset.
+
+    Args:
+        factory: ``module:callable`` importable in this worker's environment.
+        kwargs: keyword arguments of the factory (JSON types).
+        n: envs in this worker.
+        observation: declared observation, name -> (shape, dtype string).
+    """
+
+    def __init__(
+        self, factory: str, kwargs: dict[str, Any], n: int, observation: dict[str, Any]
+    ) -> None:
+        self._make = load(factory)
+        self._kwargs = kwargs
+        self._envs: list[Any] = [None] * n
+        self._spec = {k: (tuple(s), np.dtype(d)) for k, (s, d) in observation.items()}
+
+    def _obs(self, raw: Any) -> dict[str, np.ndarray]:
+        if not isinstance(raw, dict):
+            raw = {"obs": raw}
+        out = {}
+        for name, (shape, dtype) in self._spec.items():
+            if name not in raw:
+                raise KeyError(f"observation has no {name!r}; it has {sorted(raw)}")
+            value = np.asarray(raw[name])
+            if value.shape != shape:
+                raise ValueError(f"observation {name!r} has shape {value.shape}, not {shape}")
+            out[name] = value.astype(dtype, copy=False)
+        return out
+
+    def _blank(self) -> dict[str, np.ndarray]:
+        return {name: np.zeros(shape, dtype) for name, (shape, dtype) in self._spec.items()}
+
+    def _run(self, slots: list[int], fn) -> dict[str, Any]:
+        obs, reward, terminated, success, errors = [], [], [], [], []
+        for i in slots:
+            try:
+                o, r, t, s = fn(i)
+                obs.append(self._obs(o))
+                reward.append(r)
+                terminated.append(t)
+                success.append(s)
+                errors.append(None)
+            except Exception as e:
+                obs.append(self._blank())
+                reward.append(0.0)
+                terminated.append(True)
+                success.append(False)
+                last = traceback.format_exc().strip().splitlines()[-3:]
+                errors.append(f"{type(e).__name__}: {e} ({' | '.join(last)})")
+        return {
+            "obs": {k: np.stack([o[k] for o in obs]) for k in self._spec},
+            "reward": np.asarray(reward, np.float32),
+            "terminated": np.asarray(terminated, bool),
+            "success": np.asarray(success, bool),
+            "errors": errors,
+        }
+
+    def build(self) -> None:
+        """Create every env now (so that the evaluator can time it apart from the episodes)."""
+        for i, env in enumerate(self._envs):
+            if env is None:
+                self._envs[i] = self._make(**self._kwargs)
+
+    def reset(self, slots: list[int], seeds: list[int], options: list[dict]) -> dict[str, Any]:
+        """Reset the envs at local `slots` with a seed and options each."""
+        args = dict(zip(slots, zip(seeds, options, strict=True), strict=True))
+
+        def one(i: int):
+            if self._envs[i] is None:
+                self._envs[i] = self._make(**self._kwargs)
+            seed, opts = args[i]
+            obs, info = self._envs[i].reset(seed=int(seed), options=opts)
+            return obs, 0.0, False, bool(info.get("is_success", info.get("success", False)))
+
+        return self._run(slots, one)
+
+    def step(self, slots: list[int], actions: np.ndarray) -> dict[str, Any]:
+        """Step the envs at local `slots`, one action row each."""
+        rows = dict(zip(slots, actions, strict=True))
+
+        def one(i: int):
+            obs, reward, terminated, truncated, info = self._envs[i].step(rows[i])
+            success = bool(info.get("is_success", info.get("success", False)))
+            return obs, float(reward), bool(terminated or truncated or success), success
+
+        return self._run(slots, one)
+
+    def close(self) -> None:
+        for env in self._envs:
+            if env is not None and hasattr(env, "close"):
+                env.close()
+        self._envs = [None] * len(self._envs)

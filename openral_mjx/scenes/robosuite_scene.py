@@ -1,0 +1,69 @@
+"""`robosuite`: robosuite tasks with a Panda under OSC control, through the host adapter.
+
+Task `Lift` (lift the cube above the table). Observation: ``state`` (end-effector position,
+axis-angle, gripper fingers: 8 floats), ``object`` (cube position, quaternion, gripper-to-cube
+vector: 10 floats), and with `image_size` > 0 the agent-view camera ``image``. Action: 6-D OSC
+pose delta and gripper in [-1, 1] at 20 Hz. Seed s seeds robosuite's placement sampler (from
+the episode's reset key). Runs robosuite 1.4 (the version LIBERO pins; robosuite 1.5 does not
+build `Lift` on mujoco 4) in the ``lerobot-libero`` worker environment.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+from openral_mjx.errors import unknown
+from openral_mjx.host.batch import BatchConfig
+from openral_mjx.host.envs import ensure_env
+from openral_mjx.options import check
+from openral_mjx.scenes.host_scene import HostOptions, HostScene, HostSceneSpec
+
+ENV = "lerobot-libero"
+OBJECT_SIZE = {"Lift": 10}  # the task's object observation
+
+
+@dataclasses.dataclass(frozen=True)
+class RobosuiteOptions(HostOptions):
+    """`robosuite` options: the task, camera resolution (0: no camera) and episode limit."""
+
+    task: str = "Lift"
+    image_size: int = 0
+    max_steps: int = 200
+    gl: str = "egl"
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if self.task not in OBJECT_SIZE:
+            raise unknown("robosuite task", self.task, OBJECT_SIZE)
+        check(self.image_size >= 0, f"option image_size={self.image_size}: must be >= 0")
+        check(self.max_steps >= 1, f"option max_steps={self.max_steps}: must be >= 1")
+        check(self.gl in ("egl", "osmesa"), f"option gl={self.gl!r}; valid: egl, osmesa")
+
+
+def robosuite(options: RobosuiteOptions, **_: object) -> HostScene:
+    o = options
+    observation: dict = {"state": ((8,), "float32"), "object": ((OBJECT_SIZE[o.task],), "float32")}
+    if o.image_size > 0:
+        observation["image"] = ((o.image_size, o.image_size, 3), "uint8")
+    batch = BatchConfig(
+        python="",
+        factory="openral_mjx.host.robosuite_env:RobosuiteEnv",
+        kwargs={"task": o.task, "image_size": o.image_size, "horizon": o.max_steps + 1},
+        observation=observation,
+        action_size=7,
+        n_workers=o.n_workers,
+        step_timeout_s=o.step_timeout_s,
+        reset_timeout_s=o.reset_timeout_s,
+        env={"MUJOCO_GL": o.gl, "PYOPENGL_PLATFORM": o.gl},
+    )
+    spec = HostSceneSpec(
+        name="robosuite",
+        task=o.task,
+        robot="panda",
+        batch=batch,
+        action_low=(-1.0,) * 7,
+        action_high=(1.0,) * 7,
+        control_dt=0.05,
+        max_steps=o.max_steps,
+    )
+    return HostScene(spec, o, ENV, ensure_env(ENV))

@@ -5,6 +5,7 @@ Example: ``python -m openral_mjx.eval --scene tabletop_push --n-envs 1024``.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import datetime as dt
 import re
@@ -25,8 +26,9 @@ from openral_mjx.options import load_yaml, parse_overrides
 from openral_mjx.physics import BACKEND_NAMES
 from openral_mjx.policies import POLICIES
 from openral_mjx.robots import ROBOTS
-from openral_mjx.scenes import SCENES, check_robot, resolve_scene_backend
+from openral_mjx.scenes import SCENES, check_robot, resolve_scene_backend, scene_suite
 from openral_mjx.schema import EvalReport, load_report, save_report
+from openral_mjx.suite import evaluate_suite, format_tasks
 from openral_mjx.viz import require_viz
 from openral_mjx.viz.gl import GLUnavailable, camera_id, gl_backend
 from openral_mjx.viz.plots import write_plots
@@ -42,6 +44,11 @@ class EvalArgs:
     """Scene ID (see --list)."""
     policy: str = "scripted"
     """Policy ID, or ID:ARG (see --list)."""
+    task: str | None = None
+    """Task of a multi-task scene (libero: SUITE/INDEX, e.g. libero_spatial/0; robosuite: Lift)."""
+    suite: str | None = None
+    """Evaluate every task of a suite (libero: libero_spatial, libero_object, libero_goal,
+    libero_10, libero_90); reports per-task rates and their average."""
     robot: str | None = None
     """Registered robot for robot-agnostic scenes (default: the scene's, so101)."""
     robot_mjcf: Path | None = None
@@ -115,6 +122,8 @@ def _scene_options(args: EvalArgs) -> dict:
     if args.config is not None:
         options.update(load_yaml(args.config))
     options.update(parse_overrides(args.opt))
+    if args.task is not None:
+        options["task"] = args.task
     if args.robot is not None:
         ROBOTS.get(args.robot)
         options["robot"] = args.robot
@@ -141,6 +150,8 @@ def _reproduce(args: EvalArgs, backend: str, out: Path) -> str:
         str(out),
     ]
     for flag, value in (
+        ("--task", args.task),
+        ("--suite", args.suite),
         ("--n-episodes", args.n_episodes),
         ("--target-halfwidth", args.target_halfwidth),
         ("--max-episodes", args.max_episodes),
@@ -189,64 +200,101 @@ def run(args: EvalArgs) -> int:
     want_video = args.video > 0 or args.video_failures > 0
     if want_video or args.plots:
         require_viz()
-    scene = build_scene(
-        args.scene,
-        options,
-        backend=backend,
-        n_envs=args.n_envs,
-        threads=args.threads,
-        contacts_per_env=args.contacts_per_env,
-        devices=args.devices,
-    )
-    check_frames(scene, args.frames)
-    camera, gl, no_gl = "", "", None
-    if want_video:
-        camera = args.video_camera or default_camera(scene)
-        camera_id(scene.mj_model, camera)
-        try:
-            gl = gl_backend()
-        except GLUnavailable as e:  # the evaluation still runs and writes its report
-            no_gl = e
-    if args.compile_cache:
-        enable_compilation_cache()
+    if args.suite is not None:
+        _check_suite(args, want_video)
+    command = _reproduce(args, backend, out)
+    with contextlib.ExitStack() as owned:  # worker processes and policy servers end with the run
+        evaluation, camera, gl, no_gl = None, "", "", None
+        if args.suite is None:
+            scene = build_scene(
+                args.scene,
+                options,
+                backend=backend,
+                n_envs=args.n_envs,
+                threads=args.threads,
+                contacts_per_env=args.contacts_per_env,
+                devices=args.devices,
+            )
+            owned.callback(scene.close)
+            check_frames(scene, args.frames)
+            if want_video:
+                camera, gl, no_gl = _video_setup(args, scene)
+        if args.compile_cache:
+            enable_compilation_cache()
 
-    with Progress(
-        TextColumn("{task.description}"),
-        BarColumn(),
-        MofNCompleteColumn(),
-        TimeElapsedColumn(),
-        console=stderr,
-        transient=True,
-    ) as progress:
-        task = progress.add_task(f"compiling {args.scene} on {backend}", total=None)
+        with Progress(
+            TextColumn("{task.description}"),
+            BarColumn(),
+            MofNCompleteColumn(),
+            TimeElapsedColumn(),
+            console=stderr,
+            transient=True,
+        ) as progress:
+            task = progress.add_task(f"compiling {args.scene} on {backend}", total=None)
 
-        def on_chunk(done: int, total: int) -> None:
-            progress.update(task, description="episodes", completed=done, total=total)
+            def on_chunk(done: int, total: int) -> None:
+                progress.update(task, description="episodes", completed=done, total=total)
 
-        evaluation = run_evaluation(
-            scene,
-            args.policy,
-            n_envs=args.n_envs,
-            n_episodes=args.n_episodes,
-            target_halfwidth=args.target_halfwidth,
-            max_episodes=args.max_episodes,
-            factor_bins=args.factor_bins,
-            seed=args.seed,
-            max_steps=args.max_steps,
-            backend=backend,
-            command=_reproduce(args, backend, out),
-            on_chunk=on_chunk,
-            step_rewards=args.plots,
+            if args.suite is not None:
+                report = _run_suite(args, options, command, progress, task)
+            else:
+                evaluation = run_evaluation(
+                    scene,
+                    args.policy,
+                    n_envs=args.n_envs,
+                    n_episodes=args.n_episodes,
+                    target_halfwidth=args.target_halfwidth,
+                    max_episodes=args.max_episodes,
+                    factor_bins=args.factor_bins,
+                    seed=args.seed,
+                    max_steps=args.max_steps,
+                    backend=backend,
+                    command=command,
+                    on_chunk=on_chunk,
+                    step_rewards=args.plots,
+                )
+                owned.enter_context(evaluation)
+                report = evaluation.report
+        stem = out.with_suffix("")
+        frames_file = out.with_name(f"{stem.name}.frames.npz")
+        if args.frames and evaluation is not None:
+            with stderr.status(f"re-simulating {min(args.frames, report.n_episodes)} episode(s)"):
+                arrays = record_frames(evaluation, args.frames, frames_file.name)
+            save_frames(frames_file, arrays)
+        save_report(report, out)
+        _print_results(args, report, baseline, out, frames_file if args.frames else None)
+        if args.plots and evaluation is not None:
+            for path in write_plots(report, stem, evaluation.arrays["rewards"]):
+                print(f"plot: {path}")
+        if want_video and evaluation is not None:
+            if no_gl is not None:
+                raise GLUnavailable(f"cannot render videos: {no_gl}")
+            write_videos(evaluation, args, stem.with_name(f"{stem.name}_videos"), camera, gl)
+    return 0
+
+
+def _video_setup(args: EvalArgs, scene) -> tuple[str, str, GLUnavailable | None]:
+    """The videos' camera and GL backend, checked before anything runs (no GL is reported
+    after the run, which still writes its report)."""
+    if scene.backend.name == "host":
+        raise ConfigError(
+            f"--video re-simulates episodes in MuJoCo; scene {args.scene!r} runs in host "
+            "workers: drop --video/--video-failures (--plots works)"
         )
-    report = evaluation.report
-    stem = out.with_suffix("")
-    frames_file = out.with_name(f"{stem.name}.frames.npz")
-    if args.frames:
-        with stderr.status(f"re-simulating {min(args.frames, report.n_episodes)} episode(s)"):
-            arrays = record_frames(evaluation, args.frames, frames_file.name)
-        save_frames(frames_file, arrays)
-    save_report(report, out)
+    camera = args.video_camera or default_camera(scene)
+    camera_id(scene.mj_model, camera)
+    try:
+        return camera, gl_backend(), None
+    except GLUnavailable as e:
+        return camera, "", e
+
+
+def _print_results(
+    args: EvalArgs, report: EvalReport, baseline, out: Path, frames_file: Path | None
+) -> None:
     print(report.summary())
+    if args.suite is not None:
+        print(format_tasks(report))
     if report.n_envs < min(args.n_envs, report.n_episodes):
         print(
             f"note: ran {report.n_envs} envs at a time: --n-envs {args.n_envs} would not fit "
@@ -260,17 +308,43 @@ def run(args: EvalArgs) -> int:
     if baseline is not None:
         rc = compare_reports(baseline, report)
         print(format_comparison(rc, baseline, report, (str(args.compare_with), str(out))))
-    if args.frames:
+    if frames_file is not None:
         print(f"frames: {frames_file}")
     print(f"report: {out}")
-    if args.plots:
-        for path in write_plots(report, stem, evaluation.arrays["rewards"]):
-            print(f"plot: {path}")
-    if want_video:
-        if no_gl is not None:
-            raise GLUnavailable(f"cannot render videos: {no_gl}")
-        write_videos(evaluation, args, stem.with_name(f"{stem.name}_videos"), camera, gl)
-    return 0
+
+
+def _check_suite(args: EvalArgs, want_video: bool) -> None:
+    """`--suite` runs every task of the suite with a fixed episode count and no videos, plots
+    or frames."""
+    if args.task is not None or args.target_halfwidth is not None:
+        raise ConfigError("--suite runs every task of the suite: drop --task/--target-halfwidth")
+    if want_video or args.plots or args.frames:
+        raise ConfigError("--suite writes one report over its tasks: drop --video/--plots/--frames")
+    scene_suite(args.scene, args.suite)  # validate before starting anything
+
+
+def _run_suite(args: EvalArgs, options: dict, command: str, progress: Progress, task) -> EvalReport:
+    """Every task of `--suite`, one after another, into one report."""
+
+    def on_task(i: int, n: int, name: str) -> None:
+        progress.update(task, description=f"task {i + 1}/{n} {name}", completed=0, total=None)
+
+    def on_chunk(done: int, total: int) -> None:
+        progress.update(task, completed=done, total=total)
+
+    return evaluate_suite(
+        args.scene,
+        args.suite,
+        args.policy,
+        n_envs=args.n_envs,
+        n_episodes=args.n_episodes,
+        seed=args.seed,
+        max_steps=args.max_steps,
+        options=options,
+        command=command,
+        on_task=on_task,
+        on_chunk=on_chunk,
+    )
 
 
 def write_videos(

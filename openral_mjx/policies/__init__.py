@@ -15,6 +15,7 @@ from typing import Any
 from openral_mjx.errors import ConfigError
 from openral_mjx.policies.base import Policy
 from openral_mjx.policies.depth_cnn import depth_cnn_policy
+from openral_mjx.policies.lerobot import lerobot_policy
 from openral_mjx.policies.mlp import check_compatible, load_mlp, mlp_policy
 from openral_mjx.policies.simple import random_policy, zero_policy
 from openral_mjx.registry import Registry
@@ -72,6 +73,9 @@ def _mlp_sample(scene: Any, arg: str | None) -> Policy:
 def _depth_cnn(scene: Any, arg: str | None) -> Policy:
     """A small random-weight CNN on a depth image of the observation (`depth_cnn:SLICE`)."""
     return depth_cnn_policy(scene.obs_layout, scene.obs_shapes, *scene.action_bounds(), arg)
+
+
+POLICIES.register("lerobot")(lerobot_policy)
 
 
 def make_policy(spec: str, scene: Any) -> Policy:

@@ -12,8 +12,8 @@ from openral_mjx.options import from_mapping
 from openral_mjx.physics import PhysicsSettings, resolve_backend_name
 from openral_mjx.registry import Registry
 from openral_mjx.scenes.base import Scene, State
+from openral_mjx.scenes.libero import LiberoOptions, libero, suite_tasks
 from openral_mjx.scenes.so101_box import So101Box, So101BoxOptions
-from openral_mjx.scenes.libero import LiberoOptions, libero
 from openral_mjx.scenes.point_reach import PointReachOptions, point_reach
 from openral_mjx.scenes.robosuite_scene import RobosuiteOptions, robosuite
 from openral_mjx.scenes.tabletop_push import TabletopPush, TabletopPushOptions
@@ -28,6 +28,7 @@ class SceneEntry:
     build: Callable[..., Scene]
     fixed_robot: str | None = None
     backends: tuple[str, ...] | None = None
+    suites: Callable[[str], list[str]] | None = None  # suite name -> its tasks
 
 
 SCENES: Registry[SceneEntry] = Registry("scene")
@@ -46,8 +47,18 @@ def check_robot(name: str, robot: str | None, robot_mjcf: str | None = None) -> 
 
 
 SCENES.register("point_reach")(SceneEntry(PointReachOptions, point_reach, backends=("host",)))
-SCENES.register("libero")(SceneEntry(LiberoOptions, libero, "panda", backends=("host",)))
+SCENES.register("libero")(
+    SceneEntry(LiberoOptions, libero, "panda", backends=("host",), suites=suite_tasks)
+)
 SCENES.register("robosuite")(SceneEntry(RobosuiteOptions, robosuite, "panda", backends=("host",)))
+
+
+def scene_suite(name: str, suite: str) -> list[str]:
+    """The tasks of `suite` in scene `name` (a `ConfigError` for scenes without suites)."""
+    entry = SCENES.get(name)
+    if entry.suites is None:
+        raise ConfigError(f"scene {name!r} has no task suites (--suite is for libero)")
+    return entry.suites(suite)
 
 
 def resolve_scene_backend(name: str, backend: str) -> str:
@@ -96,4 +107,5 @@ __all__ = [
     "check_robot",
     "make_scene",
     "resolve_scene_backend",
+    "scene_suite",
 ]

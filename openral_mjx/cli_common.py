@@ -10,6 +10,7 @@ from typing import NoReturn, TypeVar
 from rich.console import Console
 
 from openral_mjx.errors import ConfigError
+from openral_mjx.host.pool import INTERRUPTED
 
 T = TypeVar("T")
 stderr = Console(stderr=True, highlight=False)
@@ -30,6 +31,11 @@ def guarded(main: Callable[[], T]) -> T:
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         raise SystemExit(130) from None
+    except Exception:
+        if INTERRUPTED.is_set():  # Ctrl-C inside a host callback reaches us as a JAX error
+            print("interrupted", file=sys.stderr)
+            raise SystemExit(130) from None
+        raise
 
 
 def command_line(module: str, args: list[str]) -> str:

@@ -115,7 +115,10 @@ def test_list(monkeypatch, capsys):
 @pytest.mark.parametrize(
     "argv,needle",
     [
-        (["--scene", "nope"], "unknown scene 'nope'; valid: so101_box, tabletop_push"),
+        (
+            ["--scene", "nope"],
+            "unknown scene 'nope'; valid: libero, point_reach, robosuite, so101_box, tabletop_push",
+        ),
         (["--scene", "so101_box", "--robot", "ur5"], "scene 'so101_box' requires robot 'so101'"),
         (
             ["--scene", "so101_box", "--robot-mjcf", "arm.xml"],
@@ -124,7 +127,8 @@ def test_list(monkeypatch, capsys):
         (["--scene", "so101_box", "--opt", "tube_diameter=0.03"], "must be < hole_diameter"),
         (
             ["--policy", "nope"],
-            "unknown policy 'nope'; valid: depth_cnn, mlp, mlp-sample, random, scripted, zero",
+            "unknown policy 'nope'; valid: depth_cnn, lerobot, mlp, mlp-sample, random, scripted, "
+            "zero",
         ),
         (["--robot", "ur5"], "unknown robot 'ur5'; valid: so101"),
         (["--backend", "gpu"], "unknown backend 'gpu'; valid: auto, mjx, warp, c"),
@@ -202,7 +206,10 @@ def test_process_exit_code_and_no_traceback(tmp_path):
         timeout=120,
     )
     assert proc.returncode == 2
-    assert proc.stderr.strip() == "error: unknown scene 'nope'; valid: so101_box, tabletop_push"
+    assert proc.stderr.strip() == (
+        "error: unknown scene 'nope'; valid: libero, point_reach, robosuite, so101_box, "
+        "tabletop_push"
+    )
     assert not (tmp_path / "r").exists()
 
 

@@ -25,7 +25,7 @@ _BODY = struct.Struct("<Q")
 
 def _strip(obj: Any, buffers: list[np.ndarray]) -> Any:
     if isinstance(obj, np.ndarray | np.generic):
-        arr = np.ascontiguousarray(obj)
+        arr = np.asarray(obj, order="C")  # (ascontiguousarray would make a 0-d array 1-d)
         if arr.dtype.hasobject:
             raise TypeError(f"cannot send an object array (dtype {arr.dtype})")
         buffers.append(arr)

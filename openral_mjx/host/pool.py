@@ -12,12 +12,15 @@ from __future__ import annotations
 
 import atexit
 import contextlib
+import functools
 import os
 import select
 import subprocess
 import tempfile
+import threading
 import time
 import weakref
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -26,6 +29,24 @@ from openral_mjx.host.codec import encode, parse_frame
 _PACKAGE_DIR = Path(__file__).resolve().parent.parent
 _LIVE: weakref.WeakSet[Worker] = weakref.WeakSet()
 _SHIM: list[str] = []
+
+
+INTERRUPTED = threading.Event()
+
+
+def host_callback(fn: Callable[..., Any]) -> Callable[..., Any]:
+    """Mark Ctrl-C seen inside a host callback: JAX reports any exception raised there as a
+    failed callback, so the CLI checks `INTERRUPTED` to tell an interrupt from a bug."""
+
+    @functools.wraps(fn)
+    def wrapper(*args: Any, **kwargs: Any) -> Any:
+        try:
+            return fn(*args, **kwargs)
+        except KeyboardInterrupt:
+            INTERRUPTED.set()
+            raise
+
+    return wrapper
 
 
 class WorkerFailure(RuntimeError):

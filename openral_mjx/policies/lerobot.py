@@ -33,7 +33,7 @@ import yaml
 
 from openral_mjx.errors import ConfigError
 from openral_mjx.host.envs import ensure_env
-from openral_mjx.host.pool import RemoteError, Worker, WorkerFailure
+from openral_mjx.host.pool import RemoteError, Worker, WorkerFailure, host_callback
 from openral_mjx.policies.base import Policy
 
 ENV = "lerobot-libero"
@@ -133,6 +133,7 @@ class LerobotClient:
             self.close()
             raise ConfigError(f"lerobot policy {str(self.path)!r} failed to load: {e}") from None
 
+    @host_callback
     def __call__(self, obs: dict[str, Any], t: Any) -> tuple[np.ndarray, np.ndarray]:
         lead = np.shape(t)
         t = np.asarray(t).reshape(-1)

@@ -13,9 +13,9 @@ from openral_mjx.physics import PhysicsSettings, resolve_backend_name
 from openral_mjx.registry import Registry
 from openral_mjx.scenes.base import Scene, State
 from openral_mjx.scenes.libero import LiberoOptions, libero, suite_tasks
-from openral_mjx.scenes.so101_box import So101Box, So101BoxOptions
 from openral_mjx.scenes.point_reach import PointReachOptions, point_reach
 from openral_mjx.scenes.robosuite_scene import RobosuiteOptions, robosuite
+from openral_mjx.scenes.so101_box import So101Box, So101BoxOptions
 from openral_mjx.scenes.tabletop_push import TabletopPush, TabletopPushOptions
 
 

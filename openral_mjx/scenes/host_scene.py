@@ -26,6 +26,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from openral_mjx.host.batch import BatchConfig, EnvBatch, default_workers
+from openral_mjx.host.pool import host_callback
 from openral_mjx.options import check
 from openral_mjx.scenes.base import Scene, State
 
@@ -178,6 +179,7 @@ class HostScene(Scene):
 
     # ---- host side -------------------------------------------------------------------------
 
+    @host_callback
     def _host_reset(self, seed: np.ndarray, env_seed: np.ndarray) -> dict[str, Any]:
         lead = np.shape(seed)
         seed, env_seed = np.asarray(seed).reshape(-1), np.asarray(env_seed).reshape(-1)
@@ -190,6 +192,7 @@ class HostScene(Scene):
         out["slot"] = np.arange(len(seed), dtype=np.int32)
         return _reshape(out, lead)
 
+    @host_callback
     def _host_step(self, slot: np.ndarray, action: np.ndarray, done: np.ndarray) -> dict:
         lead = np.shape(slot)  # the callback gets JAX arrays: to numpy before any indexing
         slot, action, done = np.asarray(slot).reshape(-1), np.asarray(action), np.asarray(done)

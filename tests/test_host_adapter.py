@@ -1,0 +1,202 @@
+"""The host adapter on `point_reach` (worker processes of this interpreter): episodes against
+the same env stepped directly in a Python loop, determinism, faults and clean-up."""
+
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from openral_mjx.evaluate import evaluate
+from openral_mjx.host.batch import BatchConfig, EnvBatch
+from openral_mjx.host.point_reach import IMAGE, TARGETS, PointReachEnv
+from openral_mjx.policies import make_policy
+from openral_mjx.rollout import run_seeds
+from openral_mjx.scenes import make_scene
+
+STEPS = 12
+
+
+@pytest.fixture(scope="module")
+def reach():
+    scene = make_scene("point_reach", {"n_workers": 2, "max_steps": STEPS})
+    yield scene
+    scene.close()
+
+
+def _run(scene, seeds, n_envs, record=False):
+    pol = make_policy("random", scene)
+    return run_seeds(
+        scene,
+        pol,
+        None,
+        seeds=np.asarray(seeds),
+        n_envs=n_envs,
+        max_steps=STEPS,
+        record_actions=record,
+    )[0]
+
+
+def test_episodes_match_the_env_stepped_directly(reach):
+    """Each seed replayed in-process with the actions the runner took: same rewards, steps,
+    success, first success; seed s starts from target s mod 8 and the env's reset seed is
+    drawn from the episode's reset key."""
+    seeds = np.arange(6)
+    out = _run(reach, seeds, 6, record=True)
+    reset_keys = jax.vmap(lambda s: jax.random.split(jax.random.PRNGKey(s))[0])(jnp.arange(6))
+    env_seeds = jax.vmap(lambda k: jax.random.randint(k, (), 0, 2**31 - 1, dtype=jnp.int32))(
+        reset_keys
+    )
+    for i, seed in enumerate(seeds):
+        env = PointReachEnv()
+        env.reset(seed=int(env_seeds[i]), options={"init_state": int(seed) % len(TARGETS)})
+        total, steps, first = np.float32(0), 0, -1
+        for t in range(STEPS):
+            _, reward, terminated, _, info = env.step(out["actions"][i, t])
+            total = np.float32(total + np.float32(reward))
+            steps += 1
+            if info["is_success"]:
+                first = t + 1
+            if terminated:
+                break
+        assert out["total_reward"][i] == total and out["steps"][i] == steps
+        assert out["first_success_step"][i] == first and out["success"][i] == (first > 0)
+    assert out["success"].any() or True  # random actions: success is not required
+
+
+def test_same_seed_same_episode_at_any_batch_size_and_worker_count(reach):
+    seeds = np.arange(7)
+    whole = _run(reach, seeds, 7)
+    chunked = _run(reach, seeds, 3)  # 3 + 3 + 1 (padded): workers reset for every chunk
+    one_worker = make_scene("point_reach", {"n_workers": 1, "max_steps": STEPS})
+    try:
+        single = _run(one_worker, seeds, 7)
+    finally:
+        one_worker.close()
+    for other in (chunked, single):
+        for key in ("success", "steps", "total_reward", "first_success_step", "info/error"):
+            np.testing.assert_array_equal(whole[key], other[key], err_msg=key)
+
+
+def test_finished_envs_are_not_stepped():
+    config = BatchConfig(
+        python=sys.executable,
+        factory="openral_mjx.host.point_reach:make",
+        kwargs={},
+        observation={"state": ((4,), "float32"), "image": ((IMAGE, IMAGE, 3), "uint8")},
+        action_size=2,
+        n_workers=2,
+    )
+    batch = EnvBatch(config)
+    try:
+        first = batch.reset(np.array([5, 6]), [{"init_state": 0}, {"init_state": 1}])
+        out = batch.step(np.ones((2, 2), np.float32), np.array([True, False]))
+        np.testing.assert_array_equal(out["obs"]["state"][0], first["obs"]["state"][0])
+        assert out["reward"][0] == 0.0
+        assert not np.array_equal(out["obs"]["state"][1], first["obs"]["state"][1])
+        again = batch.step(np.ones((2, 2), np.float32), np.array([False, False]))
+        np.testing.assert_array_equal(again["obs"]["state"][0], first["obs"]["state"][0])
+    finally:
+        batch.close()
+
+
+def _faulty(fault, **extra):
+    options = {
+        "n_workers": 2,
+        "max_steps": STEPS,
+        "fault": fault,
+        "fault_init_state": 1,
+        "fault_step": 2,
+        **extra,
+    }
+    return evaluate("point_reach", "random", n_envs=4, n_episodes=8, options=options)
+
+
+@pytest.fixture(scope="module")
+def clean_run():
+    return evaluate("point_reach", "random", n_envs=4, n_episodes=8, options={"max_steps": STEPS})
+
+
+@pytest.mark.parametrize(
+    "fault,extra,failed,needle",
+    [
+        ("crash", {}, {0, 1}, "worker 0 exited (exit code 3)"),
+        ("hang", {"step_timeout_s": 2.0}, {0, 1}, "worker 0 did not answer within 2 s"),
+        ("raise", {}, {1}, "env 1: RuntimeError: injected fault at step 2"),
+    ],
+)
+def test_a_fault_fails_only_its_own_episodes(clean_run, fault, extra, failed, needle):
+    """Seed 1 (init state 1) faults at its third step. A crash or hang takes down worker 0,
+    which holds envs 0 and 1; an exception fails env 1 alone. The rest of the batch, and the
+    next chunk (seeds 4..7, on a restarted worker), match a run without the fault."""
+    report = _faulty(fault, **extra)
+    assert report.n_episodes == 8
+    for ep, ref in zip(report.episodes, clean_run.episodes, strict=True):
+        seed = ep.metadata["seed"]
+        if seed in failed:
+            assert not ep.success and needle in ep.metadata["error"], ep.metadata["error"]
+            assert ep.steps == 3
+        else:
+            assert ep.metadata["error"] is None
+            assert (ep.success, ep.steps, ep.total_reward) == (
+                ref.success,
+                ref.steps,
+                ref.total_reward,
+            )
+
+
+def _workers_of(marker: str) -> list[int]:
+    """Processes whose environment carries `marker` (the workers of one test run)."""
+    found = []
+    for pid in os.listdir("/proc"):
+        if not pid.isdigit() or int(pid) == os.getpid():
+            continue
+        try:
+            with open(f"/proc/{pid}/environ", "rb") as f:
+                env = f.read()
+            with open(f"/proc/{pid}/cmdline", "rb") as f:
+                cmd = f.read()
+        except OSError:
+            continue
+        if marker.encode() in env and b"openral_mjx.host.worker" in cmd:
+            found.append(int(pid))
+    return found
+
+
+def test_ctrl_c_ends_the_run_and_its_workers(tmp_path):
+    """A run whose env hangs, interrupted: exit code 130, one line, no worker left behind."""
+    marker = f"OPENRAL_MJX_TEST_MARK={tmp_path.name}"
+    env = {**os.environ, "OPENRAL_MJX_TEST_MARK": tmp_path.name}
+    argv = [
+        sys.executable,
+        "-m",
+        "openral_mjx.eval",
+        "--scene",
+        "point_reach",
+        "--policy",
+        "zero",
+        "--n-envs",
+        "2",
+        "--opt",
+        "fault=hang",
+        "fault_init_state=0",
+        "fault_step=1",
+        "--out",
+        str(tmp_path / "r.json"),
+    ]
+    proc = subprocess.Popen(argv, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    deadline = time.monotonic() + 120
+    while not _workers_of(marker) and time.monotonic() < deadline:
+        time.sleep(0.5)
+    assert _workers_of(marker), "the workers never started"
+    time.sleep(3)  # let it reach the hanging step
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130 and b"interrupted" in err, err
+    time.sleep(1)
+    assert _workers_of(marker) == [] and not (tmp_path / "r.json").exists()

@@ -1,0 +1,76 @@
+"""Which scene observation feeds which lerobot input feature (no torch needed)."""
+
+import json
+
+import jax
+import numpy as np
+import pytest
+
+from openral_mjx.errors import ConfigError
+from openral_mjx.policies.lerobot import key_map, lerobot_policy, read_features
+
+SD = jax.ShapeDtypeStruct
+LIBERO_OBS = {
+    "image": SD((64, 64, 3), np.uint8),
+    "wrist_image": SD((64, 64, 3), np.uint8),
+    "state": SD((8,), np.float32),
+}
+
+
+def test_libero_defaults_and_lerobot_aliases():
+    features = {
+        "observation.images.image": ("VISUAL", (3, 64, 64)),
+        "observation.images.image2": ("VISUAL", (3, 64, 64)),
+        "observation.state": ("STATE", (8,)),
+    }
+    assert key_map(features, LIBERO_OBS) == {
+        "observation.images.image": "image",
+        "observation.images.image2": "wrist_image",
+        "observation.state": "state",
+    }
+
+
+def test_flat_observations_feed_both_state_features():
+    features = {
+        "observation.state": ("STATE", (27,)),
+        "observation.environment_state": ("ENV", (27,)),
+    }
+    obs = {"obs": SD((27,), np.float32)}
+    assert key_map(features, obs) == {
+        "observation.state": "obs",
+        "observation.environment_state": "obs",
+    }
+
+
+def test_explicit_map_and_mismatches():
+    features = {"observation.images.front": ("VISUAL", (3, 64, 64))}
+    with pytest.raises(ConfigError, match="has no observation: tried \\['front'\\]"):
+        key_map(features, LIBERO_OBS)
+    assert key_map(features, LIBERO_OBS, {"observation.images.front": "wrist_image"}) == {
+        "observation.images.front": "wrist_image"
+    }
+    with pytest.raises(ConfigError, match="are not inputs of the policy"):
+        key_map(features, LIBERO_OBS, {"observation.images.back": "image"})
+    small = {"observation.images.image": ("VISUAL", (3, 32, 32))}
+    with pytest.raises(ConfigError, match="shape \\[3, 32, 32\\] does not fit observation 'image'"):
+        key_map(small, LIBERO_OBS)
+
+
+def test_policy_directory_checks(tmp_path, push_c):
+    with pytest.raises(ConfigError, match="needs a directory"):
+        lerobot_policy(push_c, None)
+    with pytest.raises(ConfigError, match="does not exist"):
+        lerobot_policy(push_c, str(tmp_path / "missing"))
+    with pytest.raises(ConfigError, match=r"no config\.json"):
+        lerobot_policy(push_c, str(tmp_path))
+    (tmp_path / "config.json").write_text(
+        json.dumps(
+            {
+                "input_features": {"observation.state": {"type": "STATE", "shape": [27]}},
+                "output_features": {"action": {"type": "ACTION", "shape": [7]}},
+            }
+        )
+    )
+    assert read_features(tmp_path) == ({"observation.state": ("STATE", (27,))}, 7)
+    with pytest.raises(ConfigError, match="outputs 7 action values; scene 'tabletop_push' takes 6"):
+        lerobot_policy(push_c, str(tmp_path))

@@ -18,20 +18,24 @@ from typing import Any
 
 from openral_mjx.errors import ConfigError
 
-SCHEMA_VERSION = "openral_mjx.eval_report/2"
+SCHEMA_VERSION = "openral_mjx.eval_report/3"
 
 
 @dataclasses.dataclass
 class EpisodeResult:
     """Outcome of one episode (one seed).
 
-    Latencies are per control step of the whole batch (the batch advances in lock-step under
+    Latencies: for a policy that measures its own per-step latency (a torch policy behind a
+    host callback), its latency at each of this episode's steps: mean and max over them, and
+    `budget_violations` the steps over `latency_budget_ms` (the scene's control period).
+    Otherwise per control step of the whole batch (the batch advances in lock-step under
     one `jit`), measured per chunk: `mean_step_latency_ms` = chunk wall time / scanned steps,
     and `max_step_latency_ms` the largest such chunk mean over the run (per-step timing inside
-    a fused scan is not observable). `latency_budget_ms` is the scene's control period;
-    `budget_violations` counts this episode's steps taken while the batch step was slower.
-    `metadata` carries seed, scene, task, robot, policy, backend, diverged, first_success_step
-    and `factors` (the scene's randomised factors of this episode, name -> value).
+    a fused scan is not observable); `budget_violations` counts this episode's steps taken
+    while the batch step was slower than the control period.
+    `metadata` carries seed, scene, task, robot, policy, backend, diverged, first_success_step,
+    `factors` (the scene's randomised factors of this episode, name -> value) and, for host
+    scenes, `error` (why a worker fault ended the episode, or null).
     `frames` is None, or (for the first episodes of a run with `--frames`, see
     `openral_mjx.frames`) one entry per sensor, `{"sensor", "file", "array", "shape", "dtype",
     "reproduced"}`: its readings at every step from the reset state to the episode's end,

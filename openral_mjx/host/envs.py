@@ -5,7 +5,9 @@ Simulators and policies that cannot share the evaluator's environment (LIBERO pi
 4 and jax on numpy 2) run in worker processes under an environment of their own. Each is a
 venv under ``$OPENRAL_MJX_ENVS`` (default ``~/.cache/openral_mjx/envs``), created on first use
 with ``python -m venv`` and pip, with a progress message and no prompt, then marked ready with
-the recipe it was built from (a changed recipe rebuilds it). ``core`` is the evaluator's own
+the recipe it was built from (a changed recipe rebuilds it). With `uv` installed (the
+``libero``/``robosuite``/``lerobot`` extras bring it) the environment is built by uv, in about
+a minute and a half instead of pip's 6-11 minutes here. ``core`` is the evaluator's own
 interpreter. ``OPENRAL_MJX_PYTHON_<NAME>`` (name upper-cased, ``-`` as ``_``) points a name at
 an interpreter you manage yourself instead.
 
@@ -115,6 +117,16 @@ def _find_python(version: str) -> str:
     raise ConfigError(f"worker environments need Python {version} (python{version} not on PATH)")
 
 
+def find_uv() -> str | None:
+    """The `uv` binary (from the `uv` package the `libero` extra installs, or on PATH)."""
+    try:
+        from uv import find_uv_bin
+
+        return find_uv_bin()
+    except (ImportError, FileNotFoundError):
+        return shutil.which("uv")
+
+
 def ensure_env(name: str, *, log=None) -> str:
     """The interpreter of worker environment `name`, creating the environment if needed.
 
@@ -151,16 +163,23 @@ def _create(name: str, recipe: EnvRecipe, log) -> None:
     start = time.monotonic()
     shutil.rmtree(target, ignore_errors=True)
     python = _find_python(recipe.python)
-    commands = [[python, "-m", "venv", str(target)]]
-    pip = [str(env_python(name)), "-m", "pip", "install", "--disable-pip-version-check"]
+    uv = find_uv()
+    if uv is not None:  # parallel downloads and a hard-linked cache: minutes faster than pip
+        commands = [[uv, "venv", "--python", python, str(target)]]
+        pip = [uv, "pip", "install", "--python", str(env_python(name))]
+    else:
+        commands = [[python, "-m", "venv", str(target)]]
+        pip = [str(env_python(name)), "-m", "pip", "install", "--disable-pip-version-check"]
     commands += [[*pip, *step] for step in recipe.steps]
+    env = {**os.environ, "UV_PYTHON_DOWNLOADS": "never"}
     with open(pip_log, "w") as out:
         for i, cmd in enumerate(commands):
             label = "venv" if i == 0 else " ".join(cmd[len(pip) :])
-            print(f"openral_mjx: [{i + 1}/{len(commands)}] {label}", file=log, flush=True)
+            tool = "uv" if uv is not None else "pip"
+            print(f"openral_mjx: [{i + 1}/{len(commands)}] {label} ({tool})", file=log, flush=True)
             out.write(f"$ {' '.join(cmd)}\n")
             out.flush()
-            rc = subprocess.run(cmd, stdout=out, stderr=subprocess.STDOUT).returncode
+            rc = subprocess.run(cmd, stdout=out, stderr=subprocess.STDOUT, env=env).returncode
             if rc != 0:
                 tail = pip_log.read_text(errors="replace").strip().splitlines()[-1:]
                 raise ConfigError(

@@ -1,0 +1,43 @@
+"""Reference for the host adapter's overhead: N envs stepped from a plain Python loop.
+
+Run with a worker environment's interpreter (``PYTHONPATH`` holding this package), e.g. by
+`benchmarks/host_overhead.py`. Builds N envs (untimed), then times resetting all N and
+stepping each `steps` times with uniform random actions, one env after another, exactly the
+work one adapter worker does for N envs. Prints JSON.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import json
+import time
+
+import numpy as np
+
+
+def main() -> None:
+    p = argparse.ArgumentParser()
+    p.add_argument("--factory", required=True)
+    p.add_argument("--kwargs", default="{}")
+    p.add_argument("--n", type=int, default=4)
+    p.add_argument("--steps", type=int, default=20)
+    p.add_argument("--action-size", type=int, default=7)
+    a = p.parse_args()
+    module, _, attr = a.factory.partition(":")
+    make = getattr(importlib.import_module(module), attr)
+    envs = [make(**json.loads(a.kwargs)) for _ in range(a.n)]
+    rng = np.random.default_rng(0)
+    start = time.perf_counter()
+    for i, env in enumerate(envs):
+        env.reset(seed=i, options={"init_state": i})
+    reset_s = time.perf_counter() - start
+    for _ in range(a.steps):
+        for env in envs:
+            env.step(rng.uniform(-1, 1, a.action_size).astype(np.float32))
+    total_s = time.perf_counter() - start
+    print(json.dumps({"n": a.n, "steps": a.steps, "reset_s": reset_s, "total_s": total_s}))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,87 @@
+"""Host adapter overhead and worker scaling on LIBERO (CPU), in one process and one run.
+
+1. Reference: N LIBERO envs reset and stepped from a plain Python loop in one process of the
+   worker environment (`host_direct_loop.py`).
+2. The adapter with one worker holding the same N envs (the same sequential work, plus the
+   jitted loop, the callbacks and the pipes): overhead = its time / the reference's - 1.
+3. The adapter with 1, 2, ... workers per core: scaling.
+Timings cover the reset of all N envs and `--steps` control steps (env construction is not
+timed in either). Policy: uniform random actions. Prints and optionally writes JSON.
+
+    python benchmarks/host_overhead.py --n 4 --steps 20 --workers 1 2 4 --out bench.json
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import subprocess
+import sys
+from pathlib import Path
+
+from openral_mjx.evaluate import evaluate
+from openral_mjx.host.envs import ensure_env
+from openral_mjx.host.pool import _shim_dir
+from openral_mjx.scenes.libero import ENV
+
+
+def direct(task: str, image_size: int, n: int, steps: int, repeats: int) -> list[dict]:
+    python = ensure_env(ENV)
+    env = {**os.environ, "PYTHONPATH": _shim_dir(), "MUJOCO_GL": "egl", "PYOPENGL_PLATFORM": "egl"}
+    script = Path(__file__).with_name("host_direct_loop.py")
+    kwargs = json.dumps({"task": task, "image_size": image_size})
+    out = []
+    for _ in range(repeats):
+        argv = [python, str(script), "--factory", "openral_mjx.host.libero_env:LiberoEnv"]
+        argv += ["--kwargs", kwargs, "--n", str(n), "--steps", str(steps)]
+        proc = subprocess.run(argv, env=env, capture_output=True, text=True, check=True)
+        out.append(json.loads(proc.stdout.strip().splitlines()[-1]))
+    return out
+
+
+def adapter(task: str, image_size: int, n: int, steps: int, workers: int) -> dict:
+    options = {"task": task, "image_size": image_size, "n_workers": workers}
+    report = evaluate("libero", "random", n_envs=n, max_steps=steps, options=options)
+    return {"workers": workers, "total_s": report.run_s, "setup_s": report.compile_s}
+
+
+def main() -> None:
+    p = argparse.ArgumentParser()
+    p.add_argument("--task", default="libero_spatial/0")
+    p.add_argument("--image-size", type=int, default=128)
+    p.add_argument("--n", type=int, default=4)
+    p.add_argument("--steps", type=int, default=20)
+    p.add_argument("--workers", type=int, nargs="+", default=[1, 2, 4])
+    p.add_argument("--repeats", type=int, default=2)
+    p.add_argument("--out", type=Path)
+    a = p.parse_args()
+    ref = direct(a.task, a.image_size, a.n, a.steps, a.repeats)
+    runs = [
+        adapter(a.task, a.image_size, a.n, a.steps, w) for w in a.workers for _ in range(a.repeats)
+    ]
+    best_ref = min(r["total_s"] for r in ref)
+    best = {w: min(r["total_s"] for r in runs if r["workers"] == w) for w in a.workers}
+    result = {
+        "machine": f"{platform.node()} {os.cpu_count()} cpus, load {os.getloadavg()}",
+        "task": a.task,
+        "image_size": a.image_size,
+        "n_envs": a.n,
+        "steps": a.steps,
+        "direct_loop": ref,
+        "adapter": runs,
+        "best_direct_s": best_ref,
+        "best_adapter_s": best,
+        "overhead_1_worker": best.get(1, float("nan")) / best_ref - 1,
+        "env_steps_per_s": {w: a.n * a.steps / s for w, s in best.items()},
+        "command": " ".join([sys.executable, *sys.argv]),
+    }
+    text = json.dumps(result, indent=1)
+    print(text)
+    if a.out:
+        a.out.write_text(text + "\n")
+
+
+if __name__ == "__main__":
+    main()

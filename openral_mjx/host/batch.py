@@ -14,6 +14,7 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import os
+import shutil
 import tempfile
 from pathlib import Path
 from typing import Any
@@ -69,6 +70,7 @@ class EnvBatch:
         self._logs = Path(tempfile.mkdtemp(prefix="openral_mjx_workers_"))
         self._last: dict[str, Any] = {}
         self._ended = np.zeros(0, bool)
+        self.busy_s: list[float] = []  # per worker: seconds spent in env code since the reset
 
     @property
     def n(self) -> int:
@@ -102,11 +104,12 @@ class EnvBatch:
         """Lay out `n` slots over the workers (restarting them if the layout changes)."""
         if n == self._n and self._workers:
             return
-        self.close()
+        self._stop()
         n_workers = max(1, min(n, self.config.n_workers or default_workers()))
         bounds = np.linspace(0, n, n_workers + 1).round().astype(int)
         self._blocks = [list(range(bounds[w], bounds[w + 1])) for w in range(n_workers)]
         self._workers = [None] * n_workers
+        self.busy_s = [0.0] * n_workers
         self._n = n
         self._ended = np.ones(n, bool)
         self._last = {
@@ -162,6 +165,7 @@ class EnvBatch:
         return replies
 
     def _store(self, w: int, slots: list[int], reply: dict[str, Any]) -> None:
+        self.busy_s[w] += reply["busy_s"]
         last = self._last
         for j, i in enumerate(slots):
             for k in last["obs"]:
@@ -186,6 +190,7 @@ class EnvBatch:
     def reset(self, seeds: np.ndarray, options: list[dict[str, Any]]) -> dict[str, Any]:
         """Reset all `len(seeds)` slots (a new chunk of episodes): slot i gets seeds[i]."""
         self.resize(len(seeds))
+        self.busy_s = [0.0] * len(self._blocks)
         self._last["error"][:] = 0
         self._last["success"][:] = False
         requests = {
@@ -225,9 +230,15 @@ class EnvBatch:
             rewards[stepped[w]] = reply["reward"]
         return self._result(rewards)
 
-    def close(self) -> None:
+    def _stop(self) -> None:
         for worker in self._workers:
             if worker is not None:
                 with contextlib.suppress(Exception):
                     worker.close()
         self._workers = [None] * len(self._workers)
+
+    def close(self) -> None:
+        """Stop the workers; their logs are kept only if something failed."""
+        self._stop()
+        if not self.messages:
+            shutil.rmtree(self._logs, ignore_errors=True)

@@ -10,6 +10,7 @@ Standard library and numpy only (plus whatever the factory imports).
 
 from __future__ import annotations
 
+import time
 import traceback
 from typing import Any
 
@@ -54,6 +55,7 @@ class GymBatch:
 
     def _run(self, slots: list[int], fn) -> dict[str, Any]:
         obs, reward, terminated, success, errors = [], [], [], [], []
+        start = time.perf_counter()
         for i in slots:
             try:
                 o, r, t, s = fn(i)
@@ -75,6 +77,7 @@ class GymBatch:
             "terminated": np.asarray(terminated, bool),
             "success": np.asarray(success, bool),
             "errors": errors,
+            "busy_s": time.perf_counter() - start,  # in the envs' own code (for overhead figures)
         }
 
     def build(self) -> None:

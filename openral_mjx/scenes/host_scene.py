@@ -25,8 +25,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from openral_mjx.errors import ConfigError
 from openral_mjx.host.batch import BatchConfig, EnvBatch, default_workers
-from openral_mjx.host.pool import host_callback
+from openral_mjx.host.pool import RemoteError, WorkerFailure, host_callback
 from openral_mjx.options import check
 from openral_mjx.scenes.base import Scene, State
 
@@ -256,8 +257,17 @@ class HostScene(Scene):
         return {"error": self.batch.messages[code - 1] if code > 0 else None}
 
     def prepare(self, n_envs: int) -> None:
-        """Start the workers and build the envs for `n_envs` slots before the run is timed."""
-        self.batch.start(n_envs)
+        """Start the workers and build the envs for `n_envs` slots before the run is timed; a
+        simulator that cannot start is a `ConfigError` (nothing has run yet)."""
+        try:
+            self.batch.start(n_envs)
+        except (WorkerFailure, RemoteError) as e:
+            self.batch.messages.append(str(e))  # keeps the worker logs
+            self.batch.close()
+            raise ConfigError(
+                f"scene {self.name!r}: its workers could not start: {e} (worker logs in "
+                f"{self.batch.log_dir})"
+            ) from None
 
     def close(self) -> None:
         self.batch.close()

@@ -28,7 +28,7 @@ from openral_mjx.evaluate import evaluate
 from openral_mjx.host.envs import ensure_env
 from openral_mjx.host.pool import _shim_dir
 from openral_mjx.scenes import make_scene
-from openral_mjx.scenes.libero import ENV
+from openral_mjx.scenes.robosuite_scene import ENV
 
 
 def direct(task: str, image_size: int, n: int, steps: int, repeats: int) -> list[dict]:

@@ -36,7 +36,7 @@ from openral_mjx.host.envs import ensure_env
 from openral_mjx.host.pool import RemoteError, Worker, WorkerFailure, host_callback
 from openral_mjx.policies.base import Policy
 
-ENV = "lerobot-libero"
+ENV = "lerobot-libero"  # the worker environment that holds lerobot and its torch
 KEYS_FILE = "openral_mjx_keys.yaml"
 ALIASES = {"image2": ("image2", "wrist_image")}
 INIT_TIMEOUT_S = 900.0

@@ -74,6 +74,27 @@ class HostOptions:
     step_timeout_s: float = 60.0
     reset_timeout_s: float = 600.0
 
+    def batch_config(
+        self,
+        factory: str,
+        kwargs: dict[str, Any],
+        observation: dict[str, tuple[tuple[int, ...], str]],
+        action_size: int,
+        env: dict[str, str] | None = None,
+    ) -> BatchConfig:
+        """The workers' configuration with these options (the interpreter is set later)."""
+        return BatchConfig(
+            python="",
+            factory=factory,
+            kwargs=kwargs,
+            observation=observation,
+            action_size=action_size,
+            n_workers=self.n_workers,
+            step_timeout_s=self.step_timeout_s,
+            reset_timeout_s=self.reset_timeout_s,
+            env=dict(env or {}),
+        )
+
     def __post_init__(self) -> None:
         if self.n_workers is not None:
             check(self.n_workers >= 1, f"option n_workers={self.n_workers}: must be >= 1")

@@ -17,12 +17,10 @@ from __future__ import annotations
 import dataclasses
 
 from openral_mjx.errors import ConfigError, unknown
-from openral_mjx.host.batch import BatchConfig
-from openral_mjx.host.envs import ensure_env
 from openral_mjx.options import check
-from openral_mjx.scenes.host_scene import HostOptions, HostScene, HostSceneSpec
+from openral_mjx.scenes.host_scene import HostOptions, HostScene
+from openral_mjx.scenes.robosuite_scene import panda_osc_scene
 
-ENV = "lerobot-libero"
 # Tasks per suite and episode limits (lerobot's: the longest training demonstration + margin).
 SUITES = {
     "libero_spatial": (10, 280),
@@ -32,7 +30,6 @@ SUITES = {
     "libero_90": (90, 400),
 }
 INIT_STATES = 50  # shipped initial states per task
-CONTROL_DT = 0.05  # LIBERO controls at 20 Hz
 
 
 def parse_task(task: str) -> tuple[str, int]:
@@ -77,30 +74,19 @@ def libero(options: LiberoOptions, **_: object) -> HostScene:
     o = options
     suite, _ = parse_task(o.task)
     size = o.image_size
-    batch = BatchConfig(
-        python="",
-        factory="openral_mjx.host.libero_env:LiberoEnv",
-        kwargs={"task": o.task, "image_size": size},
-        observation={
-            "image": ((size, size, 3), "uint8"),
-            "wrist_image": ((size, size, 3), "uint8"),
-            "state": ((8,), "float32"),
-        },
-        action_size=7,
-        n_workers=o.n_workers,
-        step_timeout_s=o.step_timeout_s,
-        reset_timeout_s=o.reset_timeout_s,
-        env={"MUJOCO_GL": o.gl, "PYOPENGL_PLATFORM": o.gl},
-    )
-    spec = HostSceneSpec(
-        name="libero",
-        task=o.task,
-        robot="panda",
-        batch=batch,
-        action_low=(-1.0,) * 7,
-        action_high=(1.0,) * 7,
-        control_dt=CONTROL_DT,
-        max_steps=o.max_steps or SUITES[suite][1],
+    observation = {
+        "image": ((size, size, 3), "uint8"),
+        "wrist_image": ((size, size, 3), "uint8"),
+        "state": ((8,), "float32"),
+    }
+    return panda_osc_scene(
+        "libero",
+        o.task,
+        o,
+        "openral_mjx.host.libero_env:LiberoEnv",
+        {"task": o.task, "image_size": size},
+        observation,
+        o.max_steps or SUITES[suite][1],
+        o.gl,
         n_init_states=INIT_STATES,
     )
-    return HostScene(spec, o, ENV, ensure_env(ENV))

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import dataclasses
 
-from openral_mjx.host.batch import BatchConfig
 from openral_mjx.host.envs import ensure_env
 from openral_mjx.host.point_reach import IMAGE, TARGETS
 from openral_mjx.options import check
@@ -36,19 +35,11 @@ class PointReachOptions(HostOptions):
 
 def point_reach(options: PointReachOptions, **_: object) -> HostScene:
     o = options
-    batch = BatchConfig(
-        python="",
-        factory="openral_mjx.host.point_reach:make",
-        kwargs={
-            "fault": o.fault,
-            "fault_init_state": o.fault_init_state,
-            "fault_step": o.fault_step,
-        },
-        observation={"state": ((4,), "float32"), "image": ((IMAGE, IMAGE, 3), "uint8")},
+    batch = o.batch_config(
+        "openral_mjx.host.point_reach:make",
+        {"fault": o.fault, "fault_init_state": o.fault_init_state, "fault_step": o.fault_step},
+        {"state": ((4,), "float32"), "image": ((IMAGE, IMAGE, 3), "uint8")},
         action_size=2,
-        n_workers=o.n_workers,
-        step_timeout_s=o.step_timeout_s,
-        reset_timeout_s=o.reset_timeout_s,
     )
     spec = HostSceneSpec(
         name="point_reach",

@@ -11,15 +11,16 @@ build `Lift` on mujoco 4) in the ``lerobot-libero`` worker environment.
 from __future__ import annotations
 
 import dataclasses
+from typing import Any
 
 from openral_mjx.errors import unknown
-from openral_mjx.host.batch import BatchConfig
 from openral_mjx.host.envs import ensure_env
 from openral_mjx.options import check
 from openral_mjx.scenes.host_scene import HostOptions, HostScene, HostSceneSpec
 
 ENV = "lerobot-libero"
 OBJECT_SIZE = {"Lift": 10}  # the task's object observation
+CONTROL_DT = 0.05  # robosuite's and LIBERO's 20 Hz control
 
 
 @dataclasses.dataclass(frozen=True)
@@ -40,30 +41,41 @@ class RobosuiteOptions(HostOptions):
         check(self.gl in ("egl", "osmesa"), f"option gl={self.gl!r}; valid: egl, osmesa")
 
 
+def panda_osc_scene(
+    name: str,
+    task: str,
+    options: HostOptions,
+    factory: str,
+    kwargs: dict[str, Any],
+    observation: dict[str, tuple[tuple[int, ...], str]],
+    max_steps: int,
+    gl: str,
+    n_init_states: int = 0,
+) -> HostScene:
+    """A robosuite-based scene (robosuite itself, or LIBERO on it): a Panda under OSC_POSE
+    (7-D action in [-1, 1], 20 Hz) in the `lerobot-libero` worker environment."""
+    batch = options.batch_config(
+        factory, kwargs, observation, 7, {"MUJOCO_GL": gl, "PYOPENGL_PLATFORM": gl}
+    )
+    spec = HostSceneSpec(
+        name=name,
+        task=task,
+        robot="panda",
+        batch=batch,
+        action_low=(-1.0,) * 7,
+        action_high=(1.0,) * 7,
+        control_dt=CONTROL_DT,
+        max_steps=max_steps,
+        n_init_states=n_init_states,
+    )
+    return HostScene(spec, options, ENV, ensure_env(ENV))
+
+
 def robosuite(options: RobosuiteOptions, **_: object) -> HostScene:
     o = options
     observation: dict = {"state": ((8,), "float32"), "object": ((OBJECT_SIZE[o.task],), "float32")}
     if o.image_size > 0:
         observation["image"] = ((o.image_size, o.image_size, 3), "uint8")
-    batch = BatchConfig(
-        python="",
-        factory="openral_mjx.host.robosuite_env:RobosuiteEnv",
-        kwargs={"task": o.task, "image_size": o.image_size, "horizon": o.max_steps + 1},
-        observation=observation,
-        action_size=7,
-        n_workers=o.n_workers,
-        step_timeout_s=o.step_timeout_s,
-        reset_timeout_s=o.reset_timeout_s,
-        env={"MUJOCO_GL": o.gl, "PYOPENGL_PLATFORM": o.gl},
-    )
-    spec = HostSceneSpec(
-        name="robosuite",
-        task=o.task,
-        robot="panda",
-        batch=batch,
-        action_low=(-1.0,) * 7,
-        action_high=(1.0,) * 7,
-        control_dt=0.05,
-        max_steps=o.max_steps,
-    )
-    return HostScene(spec, o, ENV, ensure_env(ENV))
+    kwargs = {"task": o.task, "image_size": o.image_size, "horizon": o.max_steps + 1}
+    factory = "openral_mjx.host.robosuite_env:RobosuiteEnv"
+    return panda_osc_scene("robosuite", o.task, o, factory, kwargs, observation, o.max_steps, o.gl)

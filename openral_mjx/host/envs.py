@@ -168,6 +168,12 @@ def _create(name: str, recipe: EnvRecipe, log) -> None:
         commands = [[uv, "venv", "--python", python, str(target)]]
         pip = [uv, "pip", "install", "--python", str(env_python(name))]
     else:
+        print(
+            "openral_mjx: uv not found, building with pip (several times slower); "
+            "`pip install 'openral_mjx[libero]'` brings uv",
+            file=log,
+            flush=True,
+        )
         commands = [[python, "-m", "venv", str(target)]]
         pip = [str(env_python(name)), "-m", "pip", "install", "--disable-pip-version-check"]
     commands += [[*pip, *step] for step in recipe.steps]

@@ -200,6 +200,11 @@ def run(args: EvalArgs) -> int:
     want_video = args.video > 0 or args.video_failures > 0
     if want_video or args.plots:
         require_viz()
+    if (want_video or args.frames) and backend == "host":
+        raise ConfigError(
+            f"--video and --frames re-simulate episodes in MuJoCo; scene {args.scene!r} runs in "
+            "host workers: drop --video/--video-failures/--frames (--plots works)"
+        )
     if args.suite is not None:
         _check_suite(args, want_video)
     command = _reproduce(args, backend, out)
@@ -276,11 +281,6 @@ def run(args: EvalArgs) -> int:
 def _video_setup(args: EvalArgs, scene) -> tuple[str, str, GLUnavailable | None]:
     """The videos' camera and GL backend, checked before anything runs (no GL is reported
     after the run, which still writes its report)."""
-    if scene.backend.name == "host":
-        raise ConfigError(
-            f"--video re-simulates episodes in MuJoCo; scene {args.scene!r} runs in host "
-            "workers: drop --video/--video-failures (--plots works)"
-        )
     camera = args.video_camera or default_camera(scene)
     camera_id(scene.mj_model, camera)
     try:

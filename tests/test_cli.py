@@ -170,6 +170,19 @@ def test_list(monkeypatch, capsys):
             ["--video", "1", "--video-camera", "top"],
             "unknown camera 'top'; valid: overhead, front",
         ),
+        (["--scene", "libero", "--backend", "c"], "scene 'libero' runs on backend host, not 'c'"),
+        (["--backend", "host"], "scene 'tabletop_push' runs on a MuJoCo backend, not 'host'"),
+        (["--scene", "libero", "--video", "1"], "scene 'libero' runs in host workers: drop"),
+        (["--scene", "robosuite", "--frames", "1"], "scene 'robosuite' runs in host workers"),
+        (["--suite", "libero_10"], "scene 'tabletop_push' has no task suites"),
+        (["--scene", "libero", "--suite", "nope"], "unknown LIBERO suite 'nope'; valid:"),
+        (
+            ["--scene", "libero", "--suite", "libero_10", "--task", "libero_10/1"],
+            "--suite runs every task of the suite: drop --task",
+        ),
+        (["--scene", "libero", "--suite", "libero_10", "--plots"], "drop --video/--plots"),
+        (["--scene", "libero", "--task", "libero_10/10"], "index 0..9"),
+        (["--scene", "robosuite", "--task", "Stack"], "unknown robosuite task 'Stack'"),
     ],
 )
 def test_bad_input(monkeypatch, capsys, tmp_path, argv, needle):

@@ -87,6 +87,8 @@ def make_scene(
 ) -> Scene:
     """Build scene `name` with option `overrides` (validated) on `backend` run with `settings`."""
     entry = SCENES.get(name)
+    if entry.backends is not None:  # host scenes: refuse a MuJoCo backend rather than ignore it
+        resolve_scene_backend(name, backend)
     overrides = dict(overrides or {})
     check_robot(name, overrides.get("robot"), overrides.get("robot_mjcf"))
     if entry.fixed_robot is not None:

@@ -180,6 +180,15 @@ class HostScene(Scene):
     def obs_layout(self) -> dict[str, tuple[int, int]]:
         return {}
 
+    @property
+    def observation_size(self) -> int:
+        """Host scenes observe a dict of arrays, not one flat vector."""
+        raise ConfigError(
+            f"scene {self.name!r} observes a dict of arrays "
+            f"({', '.join(self.host_spec.batch.observation)}), not one flat vector: policies "
+            "and trainers that need a flat vector (mlp, finetune) do not apply"
+        )
+
     def action_bounds(self) -> tuple[jax.Array, jax.Array]:
         s = self.host_spec
         return jnp.asarray(s.action_low, jnp.float32), jnp.asarray(s.action_high, jnp.float32)

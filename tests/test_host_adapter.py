@@ -13,12 +13,13 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
+from openral_mjx import compile_cache
 from openral_mjx.errors import ConfigError
 from openral_mjx.evaluate import evaluate
 from openral_mjx.host.batch import BatchConfig, EnvBatch
 from openral_mjx.host.point_reach import IMAGE, TARGETS, PointReachEnv
 from openral_mjx.policies import make_policy
-from openral_mjx.rollout import run_seeds
+from openral_mjx.rollout import EpisodeRunner, run_seeds
 from openral_mjx.scenes import make_scene
 from openral_mjx.stats import wilson_interval
 from openral_mjx.suite import merge_reports
@@ -42,7 +43,7 @@ def _run(scene, seeds, n_envs, record=False):
         seeds=np.asarray(seeds),
         n_envs=n_envs,
         max_steps=STEPS,
-        record_actions=record,
+        record=("actions",) if record else (),
     )[0]
 
 
@@ -226,3 +227,14 @@ def test_suite_report_merges_tasks(reach):
     assert [r.task for r in merged.per_task] == [a.task, b.task]
     assert (merged.ci_low, merged.ci_high) == wilson_interval(merged.successes, 8)
     assert [e.metadata["seed"] for e in merged.episodes] == list(range(8))
+
+
+def test_host_scenes_are_not_export_cached(reach, tmp_path, monkeypatch):
+    """Host callbacks cannot be serialized: no export key, nothing written, the run works."""
+    monkeypatch.setattr(compile_cache, "_EXPORT_DIR", tmp_path)
+    runner = EpisodeRunner(reach, make_policy("random", reach), n_envs=2, max_steps=STEPS)
+    assert runner._export_key(()) is None
+    arrays, _ = runner.run(None, np.arange(2))
+    ref = _run(reach, np.arange(2), 2)
+    np.testing.assert_array_equal(arrays["total_reward"], ref["total_reward"])
+    assert list(tmp_path.iterdir()) == []

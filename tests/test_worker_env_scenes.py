@@ -104,10 +104,10 @@ def test_done_when_command(policies, tmp_path):
     assert json.loads(out.read_text())["schema_version"] == report.schema_version
 
 
-def _direct(python, factory, kwargs, episodes):
+def _direct(python, factory, kwargs, episodes, log):
     """Reference: one env stepped directly in a worker, no adapter in between; `episodes` are
     (seed, options, actions) run one after another on the same env."""
-    worker = Worker(python, GL, envs.envs_root() / "direct.log", name="direct")
+    worker = Worker(python, GL, log, name="direct")
     traces = []
     try:
         worker.call({"op": "init", "factory": factory, "kwargs": kwargs}, 600)
@@ -142,7 +142,9 @@ def _direct(python, factory, kwargs, episodes):
     ],
     ids=["libero", "robosuite"],
 )
-def test_batch_matches_the_env_stepped_directly(python, factory, kwargs, observation, init):
+def test_batch_matches_the_env_stepped_directly(
+    python, factory, kwargs, observation, init, tmp_path
+):
     """Two envs in one worker through the adapter against each env alone: the same
     observations, images included, bit for bit, after reset and every step."""
     actions = np.random.default_rng(0).uniform(-1, 1, (3, 2, 7)).astype(np.float32)
@@ -154,9 +156,8 @@ def test_batch_matches_the_env_stepped_directly(python, factory, kwargs, observa
     finally:
         batch.close()
     assert all((t["error"] == 0).all() for t in trace)
-    refs = _direct(
-        python, factory, kwargs, [(s, init[i], actions[:, i]) for i, s in enumerate((11, 12))]
-    )
+    episodes = [(s, init[i], actions[:, i]) for i, s in enumerate((11, 12))]
+    refs = _direct(python, factory, kwargs, episodes, tmp_path / "direct.log")
     for i, ref in enumerate(refs):
         for t, (got, want) in enumerate(zip(trace, ref, strict=True)):
             for key in observation:

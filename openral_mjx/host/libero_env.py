@@ -23,14 +23,6 @@ from typing import Any
 
 import numpy as np
 
-SUITES = ("libero_spatial", "libero_object", "libero_goal", "libero_10", "libero_90")
-MAX_STEPS = {  # lerobot's per-suite limits (longest training demo + margin)
-    "libero_spatial": 280,
-    "libero_object": 280,
-    "libero_goal": 300,
-    "libero_10": 520,
-    "libero_90": 400,
-}
 SETTLE_STEPS = 10
 CONTROL_HZ = 20  # LIBERO's control frequency
 DUMMY_ACTION = np.array([0, 0, 0, 0, 0, 0, -1], np.float32)
@@ -123,11 +115,3 @@ class LiberoEnv:
 
     def close(self) -> None:
         self.env.close()
-
-
-def n_tasks(suite: str) -> int:
-    """Tasks in a suite (LIBERO's benchmark registry)."""
-    configure()
-    from libero.libero import benchmark
-
-    return benchmark.get_benchmark_dict()[suite]().n_tasks

@@ -6,6 +6,7 @@ import os
 import signal
 import subprocess
 import sys
+import tempfile
 import time
 
 import jax
@@ -18,6 +19,7 @@ from openral_mjx.errors import ConfigError
 from openral_mjx.evaluate import evaluate
 from openral_mjx.host.batch import BatchConfig, EnvBatch
 from openral_mjx.host.point_reach import IMAGE, TARGETS, PointReachEnv
+from openral_mjx.host.pool import RemoteError, Worker
 from openral_mjx.policies import make_policy
 from openral_mjx.rollout import EpisodeRunner, run_seeds
 from openral_mjx.scenes import make_scene
@@ -238,3 +240,17 @@ def test_host_scenes_are_not_export_cached(reach, tmp_path, monkeypatch):
     ref = _run(reach, np.arange(2), 2)
     np.testing.assert_array_equal(arrays["total_reward"], ref["total_reward"])
     assert list(tmp_path.iterdir()) == []
+
+
+def test_modules_in_the_workers_directory_are_not_imported(tmp_path, monkeypatch):
+    """Workers run in the temp dir; a stray module there (a scratch bisect.py once shadowed
+    the standard library's) must not be importable in them."""
+    (tmp_path / "stray_module.py").write_text("class Thing:\n    pass\n")
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    worker = Worker(sys.executable, None, tmp_path / "worker.log")
+    try:
+        with pytest.raises(RemoteError, match="No module named 'stray_module'"):
+            worker.call({"op": "init", "factory": "stray_module:Thing"}, 60)
+        worker.call({"op": "init", "factory": "collections:OrderedDict"}, 60)  # still serves
+    finally:
+        worker.close()

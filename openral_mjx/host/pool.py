@@ -103,6 +103,9 @@ class Worker:
         child_env.update(env or {})
         child_env["PYTHONPATH"] = _shim_dir()
         child_env["PYTHONUNBUFFERED"] = "1"
+        # `python -m` would put the working directory (the temp dir) first on sys.path, where a
+        # stray bisect.py once shadowed the standard library's; Python >= 3.11 leaves it out.
+        child_env["PYTHONSAFEPATH"] = "1"
         log_path.parent.mkdir(parents=True, exist_ok=True)
         self._log = open(log_path, "ab")  # noqa: SIM115 - owned by the worker until kill()
         try:

@@ -14,7 +14,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from openral_mjx import compile_cache
+from openral_mjx import compile_cache, export_cache
 from openral_mjx.errors import ConfigError
 from openral_mjx.evaluate import evaluate
 from openral_mjx.host.batch import BatchConfig, EnvBatch
@@ -232,10 +232,17 @@ def test_suite_report_merges_tasks(reach):
 
 
 def test_host_scenes_are_not_export_cached(reach, tmp_path, monkeypatch):
-    """Host callbacks cannot be serialized: no export key, nothing written, the run works."""
+    """Host callbacks cannot be serialized: the runner keys nothing for the export cache
+    (with a policy that has a cache key), writes nothing there, and runs."""
     monkeypatch.setattr(compile_cache, "_EXPORT_DIR", tmp_path)
-    runner = EpisodeRunner(reach, make_policy("random", reach), n_envs=2, max_steps=STEPS)
-    assert runner._export_key(()) is None
+
+    def no_key(**parts):
+        raise AssertionError(f"keyed for the export cache: {parts.get('program')}")
+
+    monkeypatch.setattr(export_cache, "cache_key", no_key)
+    policy = make_policy("random", reach)
+    assert policy.cache_key is not None
+    runner = EpisodeRunner(reach, policy, n_envs=2, max_steps=STEPS)
     arrays, _ = runner.run(None, np.arange(2))
     ref = _run(reach, np.arange(2), 2)
     np.testing.assert_array_equal(arrays["total_reward"], ref["total_reward"])

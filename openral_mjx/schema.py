@@ -2,7 +2,8 @@
 
 Field names follow the predecessor's `EpisodeResult` (success, steps, total_reward, latency
 fields, frames, metadata). `EvalReport` aggregates a run; `SCHEMA_VERSION` changes whenever a
-field's meaning or presence changes, and loading a report of another version is an error.
+field's meaning or presence changes. Reports of `READABLE_VERSIONS` load (keeping their own
+version); any other version is an error.
 """
 
 from __future__ import annotations
@@ -19,6 +20,9 @@ from typing import Any
 from openral_mjx.errors import ConfigError
 
 SCHEMA_VERSION = "openral_mjx.eval_report/3"
+# /2 has the same fields as /3; /3 only widened what the latency fields and metadata may hold
+# (a torch policy's own latencies, a host worker's error), so a /2 report reads as it was.
+READABLE_VERSIONS = ("openral_mjx.eval_report/2", SCHEMA_VERSION)
 
 
 @dataclasses.dataclass
@@ -179,9 +183,14 @@ class EvalReport:
     def from_dict(cls, data: dict[str, Any]) -> EvalReport:
         """Strict: another schema version, a missing or an unknown field is a `ConfigError`."""
         version = data.get("schema_version") if isinstance(data, dict) else None
-        if version != SCHEMA_VERSION:
-            raise ConfigError(f"schema {version!r} is not supported; valid: {SCHEMA_VERSION}")
+        if version not in READABLE_VERSIONS:
+            raise ConfigError(
+                f"schema {version!r} is not supported; valid: {', '.join(READABLE_VERSIONS)}"
+            )
         data = dict(data)
+        for name in ("per_task", "breakdown", "episodes"):
+            if name in data and not isinstance(data[name], list):
+                raise ConfigError(f"{name} must be a list, got {type(data[name]).__name__}")
         for name, row in (("per_task", TaskRow), ("breakdown", BreakdownRow)):
             if name in data:
                 data[name] = [_build(row, r, name) for r in data[name]]

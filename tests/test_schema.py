@@ -1,6 +1,7 @@
 """Report JSON: round trip through a saved file, strict loading, compact layout, atomic writes."""
 
 import json
+from pathlib import Path
 
 import jax.numpy as jnp
 import numpy as np
@@ -78,6 +79,7 @@ def test_one_line_per_episode(report, tmp_path):
     [
         (lambda d: d.update(schema_version="openral_mjx.eval_report/1"), "not supported"),
         (lambda d: d.update(extra=1), "unknown fields ['extra']"),
+        (lambda d: d.update(episodes=6), "episodes must be a list, got int"),
         (lambda d: d.pop("breakdown"), "missing fields ['breakdown']"),
         (lambda d: d["episodes"][0].pop("steps"), "episodes: unknown fields [], missing"),
         (lambda d: d["breakdown"][0].update(bin=3), "breakdown: unknown fields ['bin']"),
@@ -91,6 +93,18 @@ def test_loading_is_strict(report, tmp_path, change, needle):
     with pytest.raises(ConfigError, match=r"^report '.*bad\.json': ") as exc:
         load_report(path)
     assert needle in str(exc.value)
+
+
+SAVED_V2 = Path(__file__).parents[1] / "benchmarks/2026-11-23-ci2core/rays/box_c_nodepth.json"
+
+
+def test_saved_schema_2_report_still_loads():
+    """A /2 report (a saved CPU run of so101_box) reads as it was written."""
+    raw = json.loads(SAVED_V2.read_text())
+    loaded = load_report(SAVED_V2)
+    assert loaded.schema_version == raw["schema_version"] == "openral_mjx.eval_report/2"
+    assert loaded.successes == raw["successes"] == sum(e.success for e in loaded.episodes)
+    assert len(loaded.episodes) == raw["n_episodes"]
 
 
 def test_failed_write_leaves_nothing(report, tmp_path):

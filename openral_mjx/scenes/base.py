@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import abc
 import functools
+import math
 import types
 from collections.abc import Mapping
 from typing import Any
@@ -182,6 +183,17 @@ def obs_slices(sizes: Mapping[str, int]) -> dict[str, tuple[int, int]]:
     """Named slices (start, size) of a flat observation made of `sizes`, in order."""
     starts = np.cumsum([0, *sizes.values()])
     return {k: (int(s), int(v)) for (k, v), s in zip(sizes.items(), starts, strict=False)}
+
+
+def arm_obs_layout(
+    n_joints: int, task: Mapping[str, int], sensors: Mapping[str, tuple[int, ...]]
+) -> dict[str, tuple[int, int]]:
+    """The observation layout of an arm scene: joint positions and velocities, the
+    end-effector position, the task's own slices (`task`: name -> size), then each observed
+    sensor flattened row-major."""
+    sizes = {"joint_pos": n_joints, "joint_vel": n_joints, "ee_pos": 3, **task}
+    sizes.update({k: math.prod(shape) for k, shape in sensors.items()})
+    return obs_slices(sizes)
 
 
 def actuator_joints(model: mujoco.MjModel, joint_ids: np.ndarray) -> jax.Array:

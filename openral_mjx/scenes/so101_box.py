@@ -85,7 +85,7 @@ from openral_mjx.physics.kinematics import site_kinematics
 from openral_mjx.policies.base import Policy
 from openral_mjx.policies.insert_expert import insert_expert
 from openral_mjx.robots import ROBOTS
-from openral_mjx.scenes.base import Scene, State, actuator_joints, obs_slices
+from openral_mjx.scenes.base import Scene, State, actuator_joints, arm_obs_layout
 from openral_mjx.scenes.composition import load_robot, look_at_quat, yaw_quat
 from openral_mjx.scenes.sensor_obs import SensorObsOptions, sensor_obs, sensor_shapes
 
@@ -625,18 +625,16 @@ class So101Box(Scene):
         home = np.array(m.qpos0, dtype=np.float32)
         home[self.robot_qpos_adr] = o.robot_home
         self._qpos_home = jnp.asarray(home)
-        n = len(self.robot_joint_ids)
-        sizes = {
-            "joint_pos": n,
-            "joint_vel": n,
-            "ee_pos": 3,
-            "tube_pos": 3,
-            "tube_quat": 4,
-            "block_pos": 3,
-            "block_quat": 4,
-            **{k: math.prod(shape) for k, shape in self.sensor_shapes.items()},
-        }
-        self._layout = obs_slices(sizes)
+        self._layout = arm_obs_layout(
+            len(self.robot_joint_ids),
+            {
+                "tube_pos": 3,
+                "tube_quat": 4,
+                "block_pos": 3,
+                "block_quat": 4,
+            },
+            self.sensor_shapes,
+        )
 
     @property
     def obs_layout(self) -> dict[str, tuple[int, int]]:

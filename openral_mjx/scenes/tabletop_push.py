@@ -43,7 +43,7 @@ from openral_mjx.physics.kinematics import site_kinematics
 from openral_mjx.policies.base import Policy
 from openral_mjx.policies.push_expert import push_expert
 from openral_mjx.robots import ROBOTS, RobotSpec, user_robot
-from openral_mjx.scenes.base import Scene, State, actuator_joints, obs_slices
+from openral_mjx.scenes.base import Scene, State, actuator_joints, arm_obs_layout
 from openral_mjx.scenes.composition import load_robot, look_at_quat, yaw_quat
 from openral_mjx.scenes.sensor_obs import SensorObsOptions, sensor_obs, sensor_shapes
 
@@ -237,17 +237,15 @@ class TabletopPush(Scene):
         for joint, value in robot.home_qpos.items():
             home[m.joint(joint).qposadr[0]] = value
         self._qpos_home = jnp.asarray(home)
-        n = len(self.robot_joint_ids)
-        sizes = {
-            "joint_pos": n,
-            "joint_vel": n,
-            "ee_pos": 3,
-            "cube_pos": 3,
-            "cube_quat": 4,
-            "goal_xy": 2,
-            **{k: math.prod(shape) for k, shape in self.sensor_shapes.items()},
-        }
-        self._layout = obs_slices(sizes)
+        self._layout = arm_obs_layout(
+            len(self.robot_joint_ids),
+            {
+                "cube_pos": 3,
+                "cube_quat": 4,
+                "goal_xy": 2,
+            },
+            self.sensor_shapes,
+        )
 
     @property
     def obs_layout(self) -> dict[str, tuple[int, int]]:

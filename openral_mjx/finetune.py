@@ -105,26 +105,26 @@ class PpoArgs(SceneArgs):
     """Continue the run in --out from its newest checkpoint."""
     num_timesteps: int | None = None
     """Environment steps to train for, rounded up to whole updates (default 20M)."""
-    n_envs: int = 4096
-    unroll_length: int = 16
+    n_envs: int = PPOConfig.n_envs
+    unroll_length: int = PPOConfig.unroll_length
     """Control steps per env per update."""
-    minibatches: int = 8
-    epochs: int = 4
+    minibatches: int = PPOConfig.n_minibatches
+    epochs: int = PPOConfig.n_epochs
     """Passes over each update's batch."""
-    actor_lr: float = 3e-5
+    actor_lr: float = PPOConfig.actor_lr
     """Initial actor learning rate (then adapted to --target-kl)."""
-    critic_lr: float = 3e-4
-    target_kl: float = 0.01
+    critic_lr: float = PPOConfig.critic_lr
+    target_kl: float = PPOConfig.target_kl
     """KL divergence per update the actor learning rate adapts to (0: fixed rate)."""
-    gamma: float = 0.99
-    gae_lambda: float = 0.95
-    clip: float = 0.2
-    entropy: float = 0.0
-    critic_warmup: int = 5
+    gamma: float = PPOConfig.gamma
+    gae_lambda: float = PPOConfig.gae_lambda
+    clip: float = PPOConfig.clip_eps
+    entropy: float = PPOConfig.entropy_coef
+    critic_warmup: int = PPOConfig.critic_warmup
     """Updates that train only the critic before the actor moves."""
-    reward_scale: float = 1.0
+    reward_scale: float = PPOConfig.reward_scale
     """Factor on the scene's reward in training."""
-    success_bonus: float = 10.0
+    success_bonus: float = PPOConfig.success_bonus
     """Training reward added on the step an episode succeeds (the scene's reward is unchanged)."""
     max_steps: int | None = None
     """Episode time limit in control steps (default: the scene's)."""

@@ -5,8 +5,8 @@ stream, so an episode depends on its seed alone, not on its position in a batch.
 ends at success, divergence or the step limit (no auto-reset). More seeds than envs run in
 chunks of `n_envs` that reuse one compiled function (the last chunk is padded with extra seeds
 whose results are dropped). Envs shard over every device the physics backend runs on (a 1-D
-mesh over the env axis, `jax.shard_map`, each device running the same single-device program on
-its slice), and a batch that would not fit in device memory is shrunk before it runs. A
+mesh over the env axis, each device running the same single-device program on its slice: see
+`device_layout`), and a batch that would not fit in device memory is shrunk before it runs. A
 caller's `until` predicate, checked after each chunk, can end the run early (sequential
 estimation).
 """
@@ -24,11 +24,9 @@ import jax.numpy as jnp
 import numpy as np
 from flax import struct
 from jax import export
-from jax.experimental import multihost_utils
-from jax.sharding import Mesh, NamedSharding
-from jax.sharding import PartitionSpec as P
 
 from openral_mjx import compile_cache, export_cache
+from openral_mjx.device_layout import Layout, PerDevice, Program
 from openral_mjx.errors import ConfigError
 from openral_mjx.policies.base import Policy
 from openral_mjx.scenes.base import Scene, State
@@ -201,13 +199,13 @@ def make_trace_fn(
 
     `(params, seeds[n], slots[n]) -> (EpisodeArrays[n], trace)`: the env with slot k < n_traced
     fills row k of every `trace` leaf, shaped `(n_traced, max_steps + 1, ...)` with step 0 the
-    reset state; other envs have slot >= n_traced. The trace holds `frame` (the scene's
+    reset state, behind a leading axis of one (one row per device when run on each device's
+    slice: sum them; one device holds each traced env, the others add zeros); other envs have
+    slot >= n_traced. The trace holds `frame` (the scene's
     `frame_record`), `images` (its `policy_images`), `sensors` (its `sensor_frames`), `action`
     (that led to the step; zero at step 0), `reward` and `live` (1 while the episode ran, 0
-    after its end). Only the
-    traced envs' rows are kept (a scatter per step), so tracing costs little memory at any
-    batch size. Under `shard_map`, rows are summed over the `env` mesh axis (one device holds
-    each traced env, the others add zeros), so the trace comes back whole on every device.
+    after its end). Only the traced envs' rows are kept (a scatter per step), so tracing costs
+    little memory at any batch size.
     """
 
     def frame(state: State, action: jax.Array, live: jax.Array) -> dict[str, Any]:
@@ -236,8 +234,7 @@ def make_trace_fn(
         n = seeds.shape[0]
         start = pick(frame(first, jnp.zeros((n, scene.action_size)), jnp.ones(n, bool)))
         steps = jax.tree.map(lambda a, b: jnp.concatenate([a[None], b]), start, records)
-        steps = jax.lax.psum(steps, "env")
-        return acc, jax.tree.map(lambda x: jnp.swapaxes(x, 0, 1), steps)
+        return acc, jax.tree.map(lambda x: jnp.swapaxes(x, 0, 1)[None], steps)
 
     return trace
 
@@ -247,67 +244,6 @@ def check_counts(n_envs: int, n_episodes: int, max_steps: int) -> None:
     for name, value in (("n_envs", n_envs), ("n_episodes", n_episodes), ("max_steps", max_steps)):
         if value < 1:
             raise ConfigError(f"{name} must be a positive integer, got {value}")
-
-
-@dataclasses.dataclass(frozen=True)
-class _Layout:
-    """Where a batch runs: one device, or a 1-D mesh of devices over the env axis."""
-
-    devices: tuple[jax.Device, ...]
-
-    @property
-    def mesh(self) -> Mesh:
-        return Mesh(np.array(self.devices), ("env",))
-
-    def put_replicated(self, tree: Any) -> Any:
-        return jax.device_put(tree, NamedSharding(self.mesh, P()))
-
-    def put_envs(self, x: np.ndarray) -> jax.Array:
-        """Shard a host array over devices along its first axis (each process its slices)."""
-        sharding = NamedSharding(self.mesh, P("env"))
-        return jax.make_array_from_callback(x.shape, sharding, lambda index: x[index])
-
-    def get(self, tree: Any) -> Any:
-        if jax.process_count() > 1:
-            return multihost_utils.process_allgather(tree, tiled=True)
-        return jax.device_get(tree)
-
-    def shard(self, fn: Callable) -> Callable:
-        """`fn` over a batch of envs, jitted and `shard_map`ped over the devices."""
-        return jax.jit(
-            jax.shard_map(
-                fn, mesh=self.mesh, in_specs=P("env"), out_specs=P("env"), check_vma=False
-            )
-        )
-
-    def wrap(self, episode: Callable, record: tuple[str, ...]) -> Callable:
-        """The jitted episode function, `shard_map`ped so every device runs the same program on
-        its slice of envs. One device goes through the same path, so a run on D devices is the
-        same per-device program as a run on one device with 1/D of the batch."""
-        out_specs: Any = P("env")
-        if record:
-            out_specs = (P("env"), {k: P(None, "env") for k in record})
-        return jax.jit(
-            jax.shard_map(
-                episode,
-                mesh=self.mesh,
-                in_specs=(P(), P("env")),
-                out_specs=out_specs,
-                check_vma=False,
-            )
-        )
-
-    def wrap_trace(self, trace: Callable) -> Callable:
-        """The jitted trace function (see `make_trace_fn`): envs sharded, the trace whole."""
-        return jax.jit(
-            jax.shard_map(
-                trace,
-                mesh=self.mesh,
-                in_specs=(P(), P("env"), P("env")),
-                out_specs=(P("env"), P()),
-                check_vma=False,
-            )
-        )
 
 
 _FACTOR_STAGES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
@@ -329,14 +265,14 @@ class FactorStages:
     `reset(seeds) -> leaves` of the reset state, then `factors(leaves) -> {name: values}`.
     The state crosses as a flat list of arrays so each half can be exported and cached."""
 
-    reset: Callable[[jax.Array], list[jax.Array]]
-    factors: Callable[[list[jax.Array]], dict[str, jax.Array]]
+    reset: PerDevice  # seeds -> list of arrays
+    factors: PerDevice  # list of arrays -> {name: values}
 
 
 def factor_stages(scene: Scene, devices: Sequence[jax.Device] | None = None) -> FactorStages | None:
     """The scene's factor stages sharded over `devices`; None when it declares no factors.
     Cached per scene and devices, so the compiled functions are reused."""
-    layout = _Layout(tuple(devices or scene.backend.devices()))
+    layout = Layout(tuple(devices or scene.backend.devices()))
     cache = _FACTOR_STAGES.setdefault(scene, {})
     if layout.devices not in cache:
 
@@ -351,8 +287,8 @@ def factor_stages(scene: Scene, devices: Sequence[jax.Device] | None = None) -> 
         if jax.eval_shape(jax.vmap(scene.episode_factors), shape):
             treedef = jax.tree.structure(shape)
             stages = FactorStages(
-                reset=layout.shard(lambda seeds: jax.tree.leaves(reset(seeds))),
-                factors=layout.shard(
+                reset=layout.per_device(lambda seeds: jax.tree.leaves(reset(seeds))),
+                factors=layout.per_device(
                     lambda leaves: jax.vmap(scene.episode_factors)(
                         jax.tree.unflatten(treedef, leaves)
                     )
@@ -451,7 +387,7 @@ class EpisodeRunner:
     ) -> None:
         check_counts(n_envs, 1, max_steps)
         self.scene = scene
-        self.layout = _Layout(tuple(devices or scene.backend.devices()))
+        self.layout = Layout(tuple(devices or scene.backend.devices()))
         limit = scene.backend.max_batch
         self.per_device = envs_per_device(n_envs, len(self.layout.devices), limit)
         if limit is not None and self.per_device > limit:
@@ -461,8 +397,9 @@ class EpisodeRunner:
             )
         self.policy = policy
         self.max_steps, self.record, self.memory_fraction = max_steps, record, memory_fraction
-        self._fn = self.layout.wrap(
-            make_episode_fn(scene, policy, max_steps, record=record), record
+        self._fn = self.layout.per_device(
+            make_episode_fn(scene, policy, max_steps, record=record),
+            (0, {k: 1 for k in record}) if record else 0,  # traces are (steps, envs, ...)
         )
         self._compiled: Any = None
         self._factor_fn: Callable | None = None
@@ -479,7 +416,7 @@ class EpisodeRunner:
         """`fn.lower(*args)` through the export cache, keyed by `program`, the scene, its
         backend and devices, `parts` and the arguments; uncached where the backend has host
         callbacks (they cannot be serialized) or the caller says it is not `cacheable`."""
-        scene, key = self.scene, None
+        scene, key, device = self.scene, None, self.layout.devices[0]
         if cacheable and scene.backend.exportable:
             key = export_cache.cache_key(
                 program=program,
@@ -487,26 +424,29 @@ class EpisodeRunner:
                 options=dataclasses.asdict(scene.options),
                 model=export_cache.model_digest(scene.mj_model),
                 backend=scene.backend.describe(),
-                devices=[[d.platform, d.device_kind] for d in self.layout.devices],
+                device=[device.platform, device.device_kind],
                 args=export_cache.argument_signature(args),
                 **parts,
             )
         return export_cache.lower(fn, args, key, compile_cache.export_dir())
 
-    def _lower_compile(self, params: Any) -> Any:
+    def _lower_compile(self, params: Any) -> Program:
         """The compiled episode; cached across processes only for a policy that says what
         determines its code (`Policy.cache_key`)."""
         args = (params, self.layout.put_envs(np.zeros(self.n_envs, np.int32)))
         policy = self.policy
-        return self._lower(
-            "episode",
-            self._fn,
+        return self._fn.compile(
             args,
-            cacheable=policy.cache_key is not None,
-            policy=policy.cache_key,
-            max_steps=self.max_steps,
-            record=list(self.record),
-        ).compile()
+            lambda fn, local_args: self._lower(
+                "episode",
+                fn,
+                local_args,
+                cacheable=policy.cache_key is not None,
+                policy=policy.cache_key,
+                max_steps=self.max_steps,
+                record=list(self.record),
+            ),
+        )
 
     def _compile_factors(self) -> Callable[[jax.Array], dict[str, jax.Array]] | None:
         """The compiled factor stages (see `make_factor_fn`), run once so no chunk pays for
@@ -515,9 +455,9 @@ class EpisodeRunner:
         if stages is None:
             return None
         seeds = self.layout.put_envs(np.zeros(self.n_envs, np.int32))
-        reset = self._lower("factor-reset", stages.reset, (seeds,)).compile()
+        reset = stages.reset.compile((seeds,), lambda fn, a: self._lower("factor-reset", fn, a))
         leaves = reset(seeds)
-        factors = self._lower("factors", stages.factors, (leaves,)).compile()
+        factors = stages.factors.compile((leaves,), lambda fn, a: self._lower("factors", fn, a))
         jax.block_until_ready(factors(leaves))
         return lambda chunk: factors(reset(chunk))
 
@@ -652,7 +592,7 @@ def trace_seeds(
     order given) and their trace (numpy leaves `(len(seeds), max_steps + 1, ...)`).
     """
     seeds = [int(s) for s in seeds]
-    layout = _Layout(tuple(devices or scene.backend.devices()))
+    layout = Layout(tuple(devices or scene.backend.devices()))
     n_dev = len(layout.devices)
     groups: dict[bytes, tuple[np.ndarray, list[int]]] = {}
     for i, seed in enumerate(seeds):
@@ -664,7 +604,7 @@ def trace_seeds(
     key = (policy, max_steps, n_traced, layout.devices)
     cache = _TRACE_FNS.setdefault(scene, {})
     if key not in cache:
-        cache[key] = layout.wrap_trace(make_trace_fn(scene, policy, max_steps, n_traced))
+        cache[key] = layout.per_device(make_trace_fn(scene, policy, max_steps, n_traced))
     fn = cache[key]
     params = layout.put_replicated(params) if params is not None else None
     outcomes: list[Any] = [None] * len(seeds)
@@ -675,6 +615,7 @@ def trace_seeds(
         for slot, i in enumerate(rows):
             slots[int(np.flatnonzero(padded == seeds[i])[0])] = slot
         acc, trace = layout.get(fn(params, layout.put_envs(padded), layout.put_envs(slots)))
+        trace = jax.tree.map(lambda x: np.sum(x, axis=0), trace)  # one row per device
         for slot, i in enumerate(rows):
             position = int(np.flatnonzero(slots == slot)[0])
             outcomes[i] = jax.tree.map(lambda x, p=position: np.asarray(x)[p], acc)

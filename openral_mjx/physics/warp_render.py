@@ -4,7 +4,7 @@
 A render context fixes the number of worlds it renders, so it cannot be built before the
 batch is known: `WarpCameras.render` is a `jax.custom_batching.custom_vmap` function whose
 batching rule sees the batch size at trace time and renders the whole batch through a context
-built for that size (cached per size; a per-device batch under `shard_map`). Unbatched (e.g.
+built for that size (cached per size; a per-device batch on several devices). Unbatched (e.g.
 shape evaluation), it renders a batch of one.
 
 Depth is planar (along the optical axis) like the ray-cast depth camera, `max_range_m` where

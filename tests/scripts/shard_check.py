@@ -9,7 +9,7 @@ import numpy as np
 
 from openral_mjx.physics import PhysicsSettings
 from openral_mjx.policies import make_policy
-from openral_mjx.rollout import run_seeds
+from openral_mjx.rollout import run_seeds, trace_seeds
 from openral_mjx.scenes import TabletopPush
 
 backend = sys.argv[1]
@@ -17,8 +17,20 @@ scene = TabletopPush(backend=backend, settings=PhysicsSettings(batch_size=8))
 policy = make_policy("scripted", scene)
 kw = dict(seeds=np.arange(10), max_steps=int(sys.argv[2]))
 devices = jax.devices()
-sharded, t4 = run_seeds(scene, policy, None, n_envs=8, devices=devices, **kw)
-single, t1 = run_seeds(scene, policy, None, n_envs=8, devices=devices[:1], **kw)
+sharded, t4 = run_seeds(scene, policy, None, n_envs=8, devices=devices, record=("actions",), **kw)
+single, t1 = run_seeds(
+    scene, policy, None, n_envs=8, devices=devices[:1], record=("actions",), **kw
+)
+# Videos re-run a few seeds with every step recorded: each device adds its envs' rows.
+traced = {
+    n: trace_seeds(
+        scene, policy, None, seeds=[3, 6], max_steps=kw["max_steps"], devices=devices[:n]
+    )
+    for n in (4, 1)
+}
+trace_equal = jax.tree.leaves(
+    jax.tree.map(lambda a, b: bool(np.array_equal(a, b)), traced[4][1], traced[1][1])
+)
 capped_scene = TabletopPush(
     backend=backend, settings=PhysicsSettings(batch_size=8, max_devices=2)
 )  # the --devices cap: the first two devices
@@ -31,6 +43,8 @@ print(
             "chunks": [len(t4.chunk_s), len(t1.chunk_s)],
             "equal": {k: bool(np.array_equal(sharded[k], single[k])) for k in sharded},
             "capped_equal": {k: bool(np.array_equal(capped[k], single[k])) for k in capped},
+            "trace_equal": all(trace_equal) and len(trace_equal) > 1,
+            "traced_live_steps": int(traced[4][1]["live"].sum()),
             "success": sharded["success"].tolist(),
         }
     )

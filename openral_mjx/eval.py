@@ -15,6 +15,7 @@ from pathlib import Path
 import tyro
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
+from openral_mjx import processes
 from openral_mjx.breakdown import format_breakdown
 from openral_mjx.cli_common import command_line, guarded, stderr
 from openral_mjx.compare import compare_reports, format_comparison
@@ -79,6 +80,10 @@ class EvalArgs:
     diverged."""
     devices: int | None = None
     """Shard envs over at most this many local devices (default: every GPU for mjx/warp)."""
+    processes: int = 1
+    """Run as this many processes on this host, each driving an equal share of the GPUs, as one
+    job (jax.distributed): on warp, one process per GPU scales where one process for all does
+    not (see README)."""
     out: Path | None = None
     """Report path (default: results/SCENE_POLICY_TIMESTAMP.json)."""
     factor_bins: int = 5
@@ -162,6 +167,7 @@ def _reproduce(args: EvalArgs, backend: str, out: Path) -> str:
         ("--threads", args.threads),
         ("--contacts-per-env", args.contacts_per_env),
         ("--devices", args.devices),
+        ("--processes", args.processes if args.processes != 1 else None),
         ("--factor-bins", args.factor_bins if args.factor_bins != 5 else None),
         ("--frames", args.frames or None),
     ):
@@ -178,6 +184,10 @@ def run(args: EvalArgs) -> int:
         return 0
     SCENES.get(args.scene)
     POLICIES.get(args.policy.partition(":")[0])
+    if args.processes != 1 and processes.rank() is None:
+        _check_processes(args)
+        return processes.launch("openral_mjx.eval", sys.argv[1:], args.processes)
+    processes.initialize()
     backend = resolve_scene_backend(args.scene, args.backend)
     options = _scene_options(args)
     stamp = dt.datetime.now().strftime("%Y%m%d-%H%M%S")
@@ -234,6 +244,7 @@ def run(args: EvalArgs) -> int:
             TimeElapsedColumn(),
             console=stderr,
             transient=True,
+            disable=not processes.is_primary(),
         ) as progress:
             task = progress.add_task(f"compiling {args.scene} on {backend}", total=None)
 
@@ -266,6 +277,8 @@ def run(args: EvalArgs) -> int:
             with stderr.status(f"re-simulating {min(args.frames, report.n_episodes)} episode(s)"):
                 arrays = record_frames(evaluation, args.frames, frames_file.name)
             save_frames(frames_file, arrays)
+        if not processes.is_primary():
+            return 0  # process 0 of the job writes and prints
         save_report(report, out)
         _print_results(args, report, baseline, out, frames_file if args.frames else None)
         if args.plots and evaluation is not None:
@@ -276,6 +289,31 @@ def run(args: EvalArgs) -> int:
                 raise GLUnavailable(f"cannot render videos: {no_gl}")
             write_videos(evaluation, args, stem.with_name(f"{stem.name}_videos"), camera, gl)
     return 0
+
+
+def _check_processes(args: EvalArgs) -> None:
+    """What a job of several processes cannot do, refused before any starts."""
+    if args.processes < 1:
+        raise ConfigError(f"--processes must be >= 1, got {args.processes}")
+    if args.backend not in ("mjx", "warp"):
+        raise ConfigError(
+            f"--processes {args.processes} shards envs over GPUs: give --backend mjx or warp, "
+            f"not {args.backend!r}"
+        )
+    extras = [
+        flag
+        for flag, on in (
+            ("--suite", args.suite is not None),
+            ("--video", args.video > 0),
+            ("--video-failures", args.video_failures > 0),
+            ("--frames", args.frames > 0),
+            ("--plots", args.plots),
+            ("--devices", args.devices is not None),
+        )
+        if on
+    ]
+    if extras:
+        raise ConfigError(f"--processes {args.processes} does not combine with {', '.join(extras)}")
 
 
 def _video_setup(args: EvalArgs, scene) -> tuple[str, str, GLUnavailable | None]:

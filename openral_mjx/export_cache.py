@@ -17,6 +17,7 @@ import functools
 import hashlib
 import importlib.metadata
 import json
+import os
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -94,7 +95,7 @@ def lower(fn: Callable, args: tuple, key: str | None, directory: Path | None) ->
         except Exception:  # something in the program cannot be serialized: no caching
             return fn.lower(*args)
         directory.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_suffix(f".tmp{id(exported)}")
+        tmp = path.with_suffix(f".tmp{os.getpid()}-{id(exported)}")  # one per process
         tmp.write_bytes(blob)
         tmp.replace(path)
     return jax.jit(exported.call).lower(*args)

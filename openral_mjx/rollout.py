@@ -24,6 +24,7 @@ import jax.numpy as jnp
 import numpy as np
 from flax import struct
 from jax import export
+from jax.experimental import multihost_utils
 
 from openral_mjx import compile_cache, export_cache
 from openral_mjx.device_layout import Layout, PerDevice, Program
@@ -464,8 +465,10 @@ class EpisodeRunner:
     def _compile(self, params: Any) -> float:
         layout, t0 = self.layout, time.perf_counter()
         compiled = self._lower_compile(params)
-        need, free = _peak_bytes(compiled), free_device_bytes(layout.devices[0])
+        need, free = _peak_bytes(compiled), free_device_bytes(layout.local_devices[0])
         fitted = _fit_batch(self.per_device, need, free, self.memory_fraction)
+        if jax.process_count() > 1:  # every process must run the same batch
+            fitted = int(np.min(multihost_utils.process_allgather(np.int64(fitted))))
         if fitted != self.per_device:
             self.per_device = fitted
             compiled = self._lower_compile(params)

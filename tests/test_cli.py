@@ -142,6 +142,12 @@ def test_list(monkeypatch, capsys):
         (["--threads", "0"], "threads must be >= 1, got 0"),
         (["--contacts-per-env", "0"], "contacts_per_env must be >= 1, got 0"),
         (["--devices", "0"], "devices must be >= 1, got 0"),
+        (["--processes", "0"], "--processes must be >= 1, got 0"),
+        (["--processes", "2"], "give --backend mjx or warp, not 'auto'"),
+        (
+            ["--processes", "2", "--backend", "warp", "--video", "1", "--devices", "1"],
+            "--processes 2 does not combine with --video, --devices",
+        ),
         (["--target-halfwidth", "0"], "target_halfwidth must lie in (0, 0.5), got 0.0"),
         (["--target-halfwidth", "0.5"], "target_halfwidth must lie in (0, 0.5), got 0.5"),
         (["--target-halfwidth", "nan"], "target_halfwidth must lie in (0, 0.5), got nan"),

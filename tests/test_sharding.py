@@ -36,3 +36,37 @@ def test_warp_on_four_devices_equals_one_device():
     assert all(result["equal"].values()), result["equal"]
     assert all(result["capped_equal"].values()), result["capped_equal"]
     assert any(result["success"])  # episodes long enough to differ if anything were off
+
+
+def test_two_processes_equal_one_process(tmp_path):
+    """`eval --processes 2`: two processes of one job (jax.distributed over gloo on the CPU),
+    2 devices each, shard the seeds over all 4 devices; process 0 alone writes the report, and
+    every episode equals a 1-device run's (warp, as above: bit-identical across layouts)."""
+    env = {
+        **os.environ,
+        "XLA_FLAGS": "--xla_force_host_platform_device_count=2",
+        "JAX_PLATFORMS": "cpu",
+    }
+    common = ["--backend", "warp", "--n-envs", "8", "--n-episodes", "10", "--max-steps", "60"]
+    reports = {}
+    for name, extra in (("two", ["--processes", "2"]), ("one", ["--devices", "1"])):
+        reports[name] = tmp_path / f"{name}.json"
+        proc = subprocess.run(
+            [sys.executable, "-m", "openral_mjx.eval", *common, *extra, "--out", reports[name]],
+            capture_output=True,
+            text=True,
+            env=env,
+            timeout=900,
+            check=False,
+        )
+        assert proc.returncode == 0, proc.stderr[-3000:]
+        assert proc.stdout.count("report: ") == 1  # one process prints
+    two, one = (json.loads(reports[k].read_text()) for k in ("two", "one"))
+    assert two["device"].endswith("x4") and one["device"].endswith("x1"), (two, one)
+    timed = {"mean_step_latency_ms", "max_step_latency_ms", "budget_violations"}  # wall clock
+
+    def outcomes(report: dict) -> list[dict]:
+        return [{k: v for k, v in e.items() if k not in timed} for e in report["episodes"]]
+
+    assert outcomes(two) == outcomes(one) and two["successes"] == one["successes"] > 0
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["one.json", "two.json"]

@@ -193,6 +193,12 @@ class PhysicsBackend(abc.ABC):
         """Every device this backend can run on (default: every device JAX sees)."""
         return list(jax.devices())
 
+    def home_device(self) -> jax.Device:
+        """Where this process keeps the model: its first device among the backend's (in a job
+        of several processes, `jax.devices()[0]` belongs to process 0, which MJX would pick)."""
+        here = jax.process_index()
+        return next(d for d in self._candidate_devices() if d.process_index == here)
+
     @property
     def max_batch(self) -> int | None:
         """Largest per-device batch this backend can run (None: unbounded)."""

@@ -40,10 +40,10 @@ class MjxBackend(PhysicsBackend):
         self._qpos0 = jnp.asarray(self.mj_model.qpos0, dtype=jnp.float32)
 
     def _put_model(self) -> mjx.Model:
-        return mjx.put_model(self.mj_model, impl=self.impl)
+        return mjx.put_model(self.mj_model, impl=self.impl, device=self.home_device())
 
     def _make_data(self) -> mjx.Data:
-        return mjx.make_data(self.mx)
+        return mjx.make_data(self.mx, device=self.home_device())
 
     def _data_ok(self, d: mjx.Data) -> jax.Array:
         """False where this env's physics can no longer be trusted."""

@@ -75,17 +75,24 @@ class WarpBackend(MjxBackend):
         super()._setup(spec)  # puts the model, which needs the overflow mask above
         self.cameras = None
         if self._render_specs:
-            gpus = [d for d in self.devices() if d.platform == "gpu"]
+            here = jax.process_index()
+            gpus = [d for d in self.devices() if d.platform == "gpu" and d.process_index == here]
             names = [f"cuda:{d.local_hardware_id}" for d in gpus] or None
             self.cameras = WarpCameras(self.mj_model, self.mx, self._render_specs, names)
 
     def _put_model(self) -> mjx.Model:
-        mx = mjx.put_model(self.mj_model, impl="warp")
+        mx = mjx.put_model(self.mj_model, impl="warp", device=self.home_device())
         opt_impl = mx.opt._impl.replace(warn_overflow=self._warn)
         return mx.replace(opt=mx.opt.replace(_impl=opt_impl))
 
     def _make_data(self) -> mjx.Data:
-        return mjx.make_data(self.mj_model, impl="warp", naconmax=self.naconmax, njmax=self.njmax)
+        return mjx.make_data(
+            self.mj_model,
+            impl="warp",
+            naconmax=self.naconmax,
+            njmax=self.njmax,
+            device=self.home_device(),
+        )
 
     def _kinematics(self, d: mjx.Data) -> mjx.Data:
         d = super()._kinematics(d)

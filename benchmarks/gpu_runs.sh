@@ -44,6 +44,12 @@ json.dump(d, open(sys.argv[2], 'w'), indent=1)" /tmp/push_warp_1m.json "$out/pus
     ev scale_${b}_all_65536 --backend "$b" --n-envs 65536 --n-episodes $((k * 65536))
     [ "${WEAK:-1}" = 1 ] && ev scale_${b}_all_131072 --backend "$b" --n-envs 131072 \
       --n-episodes $((k * 131072)) ;;
+  scale-procs)  # issue 7 / 3: all local GPUs as one process each (eval --processes), same sizes
+    b=${BACKEND:-warp}; k=${CHUNKS:-2}; p=$(nvidia-smi -L | grep -c "^GPU ")
+    ev scale_${b}_procs_65536 --backend "$b" --processes "$p" --n-envs 65536 \
+      --n-episodes $((k * 65536))
+    [ "${WEAK:-1}" = 1 ] && ev scale_${b}_procs_131072 --backend "$b" --processes "$p" \
+      --n-envs 131072 --n-episodes $((k * 131072)) ;;
   mjx-push-bench)  # issue 7 / 6: tabletop_push evaluator vs raw MJX and C
     python3 -m openral_mjx.bench --backend mjx --n ${N:-4096 16384 65536} \
       --out "$out/bench_mjx_push${N:+_${N// /_}}.json" ;;

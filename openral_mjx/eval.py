@@ -278,6 +278,7 @@ def run(args: EvalArgs) -> int:
                 arrays = record_frames(evaluation, args.frames, frames_file.name)
             save_frames(frames_file, arrays)
         if not processes.is_primary():
+            processes.finish()
             return 0  # process 0 of the job writes and prints
         save_report(report, out)
         _print_results(args, report, baseline, out, frames_file if args.frames else None)
@@ -288,6 +289,7 @@ def run(args: EvalArgs) -> int:
             if no_gl is not None:
                 raise GLUnavailable(f"cannot render videos: {no_gl}")
             write_videos(evaluation, args, stem.with_name(f"{stem.name}_videos"), camera, gl)
+    processes.finish()
     return 0
 
 

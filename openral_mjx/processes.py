@@ -56,6 +56,18 @@ def initialize() -> None:
     )
 
 
+def finish() -> None:
+    """Leave the job together (no-op outside one): every process waits for the others to get
+    here, then disconnects, so none finds its peers gone and logs an RPC error on the way out."""
+    if rank() is None:
+        return
+    import jax
+    from jax.experimental import multihost_utils
+
+    multihost_utils.sync_global_devices("openral_mjx: done")
+    jax.distributed.shutdown()
+
+
 def visible_gpus() -> list[str]:
     """The CUDA GPUs this process may use, by `CUDA_VISIBLE_DEVICES` entry or index, found
     without starting CUDA (which would claim GPU memory in a process that only launches)."""

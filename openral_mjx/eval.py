@@ -232,6 +232,12 @@ def run(args: EvalArgs) -> int:
             )
             owned.callback(scene.close)
             check_frames(scene, args.frames)
+            n_gpus = sum(d.platform == "gpu" for d in scene.backend.devices())
+            if backend == "warp" and n_gpus > 1 and processes.rank() is None:
+                stderr.print(
+                    f"note: one process drives {n_gpus} GPUs on warp at ~1.5x one GPU; "
+                    f"--processes {n_gpus} runs one process per GPU (~1.8-1.9x)"
+                )
             if want_video:
                 camera, gl, no_gl = _video_setup(args, scene)
         if args.compile_cache:

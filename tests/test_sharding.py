@@ -10,25 +10,24 @@ from pathlib import Path
 SCRIPT = Path(__file__).parent / "scripts" / "shard_check.py"
 
 
+def run_on_cpu_devices(n_devices: int, *argv: object) -> subprocess.CompletedProcess:
+    """`python ARGV` in a fresh process whose JAX sees `n_devices` CPU devices."""
+    env = {
+        **os.environ,
+        "XLA_FLAGS": f"--xla_force_host_platform_device_count={n_devices}",
+        "JAX_PLATFORMS": "cpu",
+    }
+    argv = (sys.executable, *map(str, argv))
+    return subprocess.run(argv, capture_output=True, text=True, env=env, timeout=900, check=False)
+
+
 def test_warp_on_four_devices_equals_one_device():
     """10 seeds x 60 control steps of the scripted expert on MuJoCo-Warp (CPU mode): 4 devices
     x 2 envs against 1 device x 8 envs, chunked. Warp's per-env kernels and the fixed-order
     task logic make every seed's episode bit-identical whatever the layout; MJX's JAX
     implementation compiles its physics differently per layout (XLA's rewrites), so it is
     identical only at the same layout, and is not used here."""
-    env = {
-        **os.environ,
-        "XLA_FLAGS": "--xla_force_host_platform_device_count=4",
-        "JAX_PLATFORMS": "cpu",
-    }
-    proc = subprocess.run(
-        [sys.executable, str(SCRIPT), "warp", "60"],
-        capture_output=True,
-        text=True,
-        env=env,
-        timeout=900,
-        check=False,
-    )
+    proc = run_on_cpu_devices(4, SCRIPT, "warp", "60")
     assert proc.returncode == 0, proc.stderr[-2000:]
     result = json.loads(proc.stdout.strip().splitlines()[-1])
     assert result["n_devices"] == [4, 1, 2]  # all, one, and the settings' cap of two
@@ -42,22 +41,12 @@ def test_two_processes_equal_one_process(tmp_path):
     """`eval --processes 2`: two processes of one job (jax.distributed over gloo on the CPU),
     2 devices each, shard the seeds over all 4 devices; process 0 alone writes the report, and
     every episode equals a 1-device run's (warp, as above: bit-identical across layouts)."""
-    env = {
-        **os.environ,
-        "XLA_FLAGS": "--xla_force_host_platform_device_count=2",
-        "JAX_PLATFORMS": "cpu",
-    }
     common = ["--backend", "warp", "--n-envs", "8", "--n-episodes", "10", "--max-steps", "60"]
     reports = {}
     for name, extra in (("two", ["--processes", "2"]), ("one", ["--devices", "1"])):
         reports[name] = tmp_path / f"{name}.json"
-        proc = subprocess.run(
-            [sys.executable, "-m", "openral_mjx.eval", *common, *extra, "--out", reports[name]],
-            capture_output=True,
-            text=True,
-            env=env,
-            timeout=900,
-            check=False,
+        proc = run_on_cpu_devices(
+            2, "-m", "openral_mjx.eval", *common, *extra, "--out", reports[name]
         )
         assert proc.returncode == 0, proc.stderr[-3000:]
         assert proc.stdout.count("report: ") == 1  # one process prints

@@ -301,8 +301,7 @@ def run(args: EvalArgs) -> int:
 
 def _check_processes(args: EvalArgs) -> None:
     """What a job of several processes cannot do, refused before any starts."""
-    if args.processes < 1:
-        raise ConfigError(f"--processes must be >= 1, got {args.processes}")
+    processes.check_count(args.processes)
     if args.backend not in ("mjx", "warp"):
         raise ConfigError(
             f"--processes {args.processes} shards envs over GPUs: give --backend mjx or warp, "

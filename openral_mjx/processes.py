@@ -14,6 +14,7 @@ coordinator instead of `launch`).
 
 from __future__ import annotations
 
+import contextlib
 import os
 import shutil
 import socket
@@ -105,30 +106,36 @@ def gpu_groups(n: int, gpus: list[str]) -> list[str | None]:
     return [",".join(gpus[i * k : (i + 1) * k]) for i in range(n)]
 
 
+def check_count(n: int) -> None:
+    """A job needs at least one process."""
+    if n < 1:
+        raise ConfigError(f"--processes must be >= 1, got {n}")
+
+
 def launch(module: str, argv: list[str], n: int) -> int:
     """Run `python -m module argv` as `n` processes of one job; return the job's exit code.
 
     Process 0 keeps this terminal; the others write to log files, whose tail is printed if one
     fails. When any process fails, the rest are stopped (they would wait on it forever)."""
-    if n < 1:
-        raise ConfigError(f"--processes must be >= 1, got {n}")
+    check_count(n)
     groups = gpu_groups(n, visible_gpus())
     env = {**os.environ, COORDINATOR: f"127.0.0.1:{_free_port()}", NUM_PROCESSES: str(n)}
     logs = Path(tempfile.mkdtemp(prefix="openral_mjx_processes_"))
     procs: list[subprocess.Popen] = []
-    for i, gpus in enumerate(groups):
-        child = {**env, PROCESS_ID: str(i)}
-        if gpus is not None:
-            child["CUDA_VISIBLE_DEVICES"] = gpus
-        out = None if i == 0 else open(logs / f"process{i}.log", "w")  # noqa: SIM115
-        cmd = [sys.executable, "-m", module, *argv]
-        procs.append(subprocess.Popen(cmd, env=child, stdout=out, stderr=out))
-    try:
-        codes = _wait_all(procs)
-    finally:
-        for p in procs:
-            if p.poll() is None:
-                p.kill()
+    with contextlib.ExitStack() as files:
+        for i, gpus in enumerate(groups):
+            child = {**env, PROCESS_ID: str(i)}
+            if gpus is not None:
+                child["CUDA_VISIBLE_DEVICES"] = gpus
+            out = None if i == 0 else files.enter_context(open(logs / f"process{i}.log", "w"))
+            cmd = [sys.executable, "-m", module, *argv]
+            procs.append(subprocess.Popen(cmd, env=child, stdout=out, stderr=out))
+        try:
+            codes = _wait_all(procs)
+        finally:
+            for p in procs:
+                if p.poll() is None:
+                    p.kill()
     failed = [(i, c) for i, c in enumerate(codes) if c != 0]
     for i, code in failed:
         if i == 0:

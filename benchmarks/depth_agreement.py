@@ -19,7 +19,7 @@ import numpy as np
 
 from openral_mjx import raycast
 from openral_mjx.physics import PhysicsSettings
-from openral_mjx.rollout import seed_keys
+from openral_mjx.runner import seed_keys
 from openral_mjx.scenes import make_scene
 
 SIZE = (64, 40)

@@ -16,12 +16,12 @@ from pathlib import Path
 import numpy as np
 import tyro
 
-from openral_mjx.compile_cache import enable_compilation_cache
+from openral_mjx.core.files import write_json_atomic
 from openral_mjx.physics import PhysicsSettings, resolve_backend_name
 from openral_mjx.policies import make_policy
-from openral_mjx.rollout import run_seeds
+from openral_mjx.runner import run_seeds
+from openral_mjx.runner.compile_cache import enable_compilation_cache
 from openral_mjx.scenes import make_scene
-from openral_mjx.schema import write_json_atomic
 
 FIELDS = ("success", "steps", "first_success_step", "total_reward", "diverged")
 

@@ -24,7 +24,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-from openral_mjx.evaluate import evaluate
+from openral_mjx.evaluation import evaluate
 from openral_mjx.host.envs import ensure_env
 from openral_mjx.host.pool import _shim_dir
 from openral_mjx.scenes import make_scene

@@ -1,46 +1,30 @@
 """`python -m openral_mjx.bench`: evaluator throughput against raw physics ceilings, one run
-(`--rays`: the ray-cast sensors against raw `mjx.ray` and `mj_multiRay`, see `bench_rays`).
+(`--rays`: the ray-cast sensors against raw `mjx.ray` and `mj_multiRay`).
 
-Per batch size N, on the same scene model and substeps, measured side by side:
-
-* evaluator: the full runner (scripted policy, scene logic, freezing) in control steps/s;
-* raw ceiling of the chosen backend: for `mjx`/`warp`, a bare `vmap(scan(mjx.step x
-  substeps))` with the same implementation and buffers; for `c`, bare `mujoco.rollout` calls
-  (one per control step, same threads) with no JAX;
-* MuJoCo C on all cores (`mujoco.rollout`), the CPU reference.
-
-The raw runs replay the evaluator's recorded actions open-loop from the same reset states, so
-they simulate the same contacts (the solvers exit early on easy states: a resting arm would
-flatter the ceiling about twofold).
-
-Ratios (evaluator / raw, evaluator / C) are what transfers between machines; absolute numbers
-count only with the device named. Prints a table and writes JSON (`--out`).
+What is measured and how: `openral_mjx.perf.throughput` and `openral_mjx.perf.rays`. Ratios
+(evaluator / raw, evaluator / C) are what transfers between machines; absolute numbers count
+only with the device named. Prints a table and writes JSON (`--out`).
 """
 
 from __future__ import annotations
 
 import dataclasses
 import datetime as dt
-import time
 from pathlib import Path
 
 import jax
-import jax.numpy as jnp
-import mujoco
-import numpy as np
 import tyro
-from mujoco import rollout
 
-from openral_mjx.cli_common import command_line, guarded
-from openral_mjx.compile_cache import enable_compilation_cache
-from openral_mjx.errors import ConfigError
-from openral_mjx.evaluate import device_description, package_versions
+from openral_mjx.cli.common import command_line, guarded
+from openral_mjx.core.errors import ConfigError
+from openral_mjx.core.files import write_json_atomic
+from openral_mjx.evaluation.provenance import device_description, package_versions
+from openral_mjx.perf.rays import run_rays
+from openral_mjx.perf.throughput import measure_throughput
 from openral_mjx.physics import PhysicsSettings, resolve_backend_name
 from openral_mjx.physics.c_backend import default_threads
-from openral_mjx.policies import make_policy
-from openral_mjx.rollout import run_seeds
+from openral_mjx.runner.compile_cache import enable_compilation_cache
 from openral_mjx.scenes import make_scene
-from openral_mjx.schema import write_json_atomic
 
 
 @dataclasses.dataclass
@@ -66,7 +50,7 @@ class BenchArgs:
     rays: bool = False
     """Measure the ray-cast sensors (laser, depth) in rays/s instead of the evaluator, against
     vmap(mjx.ray) and mj_multiRay on all cores, on the default JAX device (see
-    openral_mjx/bench_rays.py; --backend and --max-steps do not apply)."""
+    openral_mjx/perf/rays.py; --backend and --max-steps do not apply)."""
     laser_frame: str = "ee"
     """--rays: body or site carrying the benchmarked laser."""
     camera: str | None = None
@@ -77,66 +61,8 @@ class BenchArgs:
     """--rays: timed calls per measurement (median)."""
 
 
-def raw_mjx(scene, actions: np.ndarray) -> tuple[float, float]:
-    """Bare `vmap(scan(mjx.step))` (the scene backend's MJX implementation) replaying the
-    evaluator's actions open-loop from the same reset states (so contacts and solver work
-    match): (compile s, control steps/s)."""
-    from openral_mjx.physics.mjx_backend import mjx
-
-    mx, n_sub = scene.backend.mx, scene.options.n_substeps
-    n, steps = actions.shape[:2]
-    keys = jax.vmap(lambda s: jax.random.split(jax.random.PRNGKey(s))[0])(jnp.arange(n))
-    data = jax.jit(jax.vmap(lambda k: scene.reset(k).physics.data))(keys)
-    low, high = scene.action_bounds()
-    ctrls = jnp.clip(jnp.asarray(actions), low, high)
-
-    def one(d, ctrl_seq):
-        def control_step(d, ctrl):
-            d = d.replace(ctrl=ctrl)
-            return jax.lax.fori_loop(0, n_sub, lambda _, x: mjx.step(mx, x), d), None
-
-        return jax.lax.scan(control_step, d, ctrl_seq)[0].qpos
-
-    fn = jax.jit(jax.vmap(one))
-    t = time.perf_counter()
-    compiled = fn.lower(data, ctrls).compile()
-    compile_s = time.perf_counter() - t
-    t = time.perf_counter()
-    jax.block_until_ready(compiled(data, ctrls))
-    return compile_s, n * steps / (time.perf_counter() - t)
-
-
-def raw_c(scene, actions: np.ndarray, threads: int) -> float:
-    """Bare `mujoco.rollout`, one call per control step as the evaluator makes, replaying the
-    evaluator's actions from the same reset states, no JAX: control steps/s."""
-    n, steps = actions.shape[:2]
-    keys = jax.vmap(lambda s: jax.random.split(jax.random.PRNGKey(s))[0])(jnp.arange(n))
-    with jax.default_device(jax.devices("cpu")[0]):
-        bits = jax.jit(jax.vmap(lambda k: scene.reset(k).physics.data))(keys)
-    states = np.asarray(bits).view(np.float64).reshape(n, -1)
-    low, high = (np.asarray(x, np.float64) for x in scene.action_bounds())
-    ctrl = np.clip(np.asarray(actions, np.float64), low, high)
-    c_model = scene.backend.host_model
-    datas = [mujoco.MjData(c_model) for _ in range(threads)]
-    with rollout.Rollout(nthread=threads) as pool:
-        t = time.perf_counter()
-        for i in range(steps):
-            out, _ = pool.rollout(
-                c_model, datas, states, ctrl[:, i : i + 1], nstep=scene.options.n_substeps
-            )
-            states = out[:, -1]
-        return n * steps / (time.perf_counter() - t)
-
-
-def peak_memory_bytes() -> int | None:
-    stats = jax.devices()[0].memory_stats() or {}
-    return stats.get("peak_bytes_in_use")
-
-
 def run_rays_bench(args: BenchArgs) -> int:
-    """`--rays`: sensor rays/s against raw `mjx.ray` and `mj_multiRay` (bench_rays)."""
-    from openral_mjx.bench_rays import run_rays
-
+    """`--rays`: sensor rays/s against raw `mjx.ray` and `mj_multiRay` (perf.rays)."""
     if not args.n or min(args.n) < 1 or args.repeats < 1 or min(args.geom_counts, default=2) < 2:
         raise ConfigError(
             f"--n, --repeats must be positive and --geom-counts >= 2, got {args.n}, "
@@ -193,39 +119,16 @@ def run(args: BenchArgs) -> int:
     )
     scene = make_scene(args.scene, backend=backend, settings=settings)
     args = dataclasses.replace(args, max_steps=args.max_steps or scene.max_steps)
-    policy = make_policy("scripted", scene)
     c_scene = scene if backend == "c" else make_scene(args.scene, backend="c", settings=settings)
-    rows = []
-    for n in args.n:
-        arrays, timing = run_seeds(
-            scene,
-            policy,
-            None,
-            seeds=np.arange(n),
-            n_envs=n,
-            max_steps=args.max_steps,
-            record=("actions",),
-        )
-        evaluator = n * args.max_steps / timing.run_s
-        row = {"n": n, "evaluator_steps_per_s": evaluator, "evaluator_compile_s": timing.compile_s}
-        if backend in ("mjx", "warp"):
-            row["raw_compile_s"], row["raw_steps_per_s"] = raw_mjx(scene, arrays["actions"])
-            row["peak_device_bytes"] = peak_memory_bytes()
-        n_c = min(n, args.c_max_envs)
-        row["c_envs"], row["c_threads"] = n_c, threads
-        row["c_steps_per_s"] = raw_c(c_scene, arrays["actions"][:n_c], threads)
-        if backend == "c":
-            row["raw_steps_per_s"] = row["c_steps_per_s"]
-        row["evaluator_over_raw"] = evaluator / row["raw_steps_per_s"]
-        row["evaluator_over_c"] = evaluator / row["c_steps_per_s"]
-        rows.append(row)
-        print(
-            f"N={n:>6}: evaluator {evaluator:>12,.0f}  raw {backend} "
-            f"{row['raw_steps_per_s']:>12,.0f}  C({threads} thr) {row['c_steps_per_s']:>10,.0f}"
-            f"  control steps/s | eval/raw {row['evaluator_over_raw']:.2f}"
-            f"  eval/C {row['evaluator_over_c']:.2f}  compile {timing.compile_s:.1f} s",
-            flush=True,
-        )
+    rows = measure_throughput(
+        scene,
+        c_scene,
+        args.n,
+        args.max_steps,
+        threads,
+        args.c_max_envs,
+        log=lambda line: print(line, flush=True),
+    )
     result = {
         "scene": args.scene,
         "backend": backend,

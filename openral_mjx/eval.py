@@ -15,25 +15,25 @@ from pathlib import Path
 import tyro
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
-from openral_mjx import processes
-from openral_mjx.breakdown import format_breakdown
-from openral_mjx.cli_common import command_line, guarded, stderr
-from openral_mjx.compare import compare_reports, format_comparison
-from openral_mjx.compile_cache import enable_compilation_cache
-from openral_mjx.errors import ConfigError
-from openral_mjx.evaluate import Evaluation, build_scene, run_evaluation
-from openral_mjx.frames import check_frames, record_frames, save_frames
-from openral_mjx.options import load_yaml, parse_overrides
+from openral_mjx.cli.common import command_line, guarded, stderr
+from openral_mjx.core.errors import ConfigError
+from openral_mjx.core.options import load_yaml, parse_overrides
+from openral_mjx.evaluation import Evaluation, build_scene, run_evaluation
+from openral_mjx.evaluation.frames import check_frames, record_frames, save_frames
+from openral_mjx.evaluation.replay import choose_seeds, trace_episodes
+from openral_mjx.evaluation.suite import evaluate_suite, format_tasks
 from openral_mjx.physics import BACKEND_NAMES
 from openral_mjx.policies import POLICIES
+from openral_mjx.report import EvalReport, load_report, save_report
 from openral_mjx.robots import ROBOTS
+from openral_mjx.runner import processes
+from openral_mjx.runner.compile_cache import enable_compilation_cache
 from openral_mjx.scenes import SCENES, check_robot, resolve_scene_backend, scene_suite
-from openral_mjx.schema import EvalReport, load_report, save_report
-from openral_mjx.suite import evaluate_suite, format_tasks
+from openral_mjx.stats.breakdown import format_breakdown
+from openral_mjx.stats.report_comparison import compare_reports, format_comparison
 from openral_mjx.viz import require_viz
 from openral_mjx.viz.gl import GLUnavailable, camera_id, gl_backend
 from openral_mjx.viz.plots import write_plots
-from openral_mjx.viz.record import choose_seeds, trace_episodes
 from openral_mjx.viz.video import default_camera, write_episode_video
 
 

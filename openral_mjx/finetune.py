@@ -20,14 +20,14 @@ import jax
 import numpy as np
 import tyro
 
-from openral_mjx.cli_common import command_line, guarded
-from openral_mjx.compile_cache import enable_compilation_cache
-from openral_mjx.errors import ConfigError
-from openral_mjx.options import load_yaml, parse_overrides, to_dict
+from openral_mjx.cli.common import command_line, guarded
+from openral_mjx.core.errors import ConfigError
+from openral_mjx.core.files import write_json_atomic
+from openral_mjx.core.options import load_yaml, parse_overrides, to_dict
 from openral_mjx.physics import PhysicsSettings, resolve_backend_name
 from openral_mjx.policies.mlp import MlpConfig, check_compatible, init_params, load_mlp, save_mlp
+from openral_mjx.runner.compile_cache import enable_compilation_cache
 from openral_mjx.scenes import SCENES, Scene, make_scene
-from openral_mjx.schema import write_json_atomic
 from openral_mjx.training.bc import BCConfig, collect_demos, fit, policy_config
 from openral_mjx.training.curves import can_plot, plot_learning_curve
 from openral_mjx.training.evaluation import TEST_SEEDS, VALIDATION_SEEDS, HeldOutEvaluator

@@ -41,7 +41,7 @@ def box_c() -> So101Box:
 def scripted_eval(push_c):
     """8 seeds of the scripted expert, 100 steps (some succeed, some run out of time), with
     per-step rewards: shared by the video and plot tests."""
-    from openral_mjx.evaluate import run_evaluation
+    from openral_mjx.evaluation import run_evaluation
 
     return run_evaluation(push_c, "scripted", n_envs=8, max_steps=100, step_rewards=True)
 

@@ -4,7 +4,7 @@ import pytest
 
 import openral_mjx.physics as physics
 import openral_mjx.physics.warp_backend as warp_backend
-from openral_mjx.errors import ConfigError
+from openral_mjx.core.errors import ConfigError
 from openral_mjx.scenes import make_scene
 
 

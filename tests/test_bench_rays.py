@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from openral_mjx import raycast
-from openral_mjx.bench_rays import RayWorkload, clutter_scene, host_states, scene_sensors
+from openral_mjx.perf.rays import RayWorkload, clutter_scene, host_states, scene_sensors
 
 TOL = 1e-4  # metres, float32 casts against float64 mj_multiRay
 

@@ -5,9 +5,9 @@ import itertools
 import numpy as np
 import pytest
 
-from openral_mjx.breakdown import breakdown, format_breakdown, quantile_edges
-from openral_mjx.errors import ConfigError
+from openral_mjx.core.errors import ConfigError
 from openral_mjx.stats import wilson_interval
+from openral_mjx.stats.breakdown import breakdown, format_breakdown, quantile_edges
 
 
 def test_bins_partition_the_episodes_with_equal_counts():

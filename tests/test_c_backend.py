@@ -7,7 +7,7 @@ import pytest
 
 from openral_mjx.physics import PhysicsSettings
 from openral_mjx.policies import make_policy
-from openral_mjx.rollout import run_seeds
+from openral_mjx.runner import run_seeds
 from openral_mjx.scenes import TabletopPush
 
 

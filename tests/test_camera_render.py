@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from openral_mjx import raycast
-from openral_mjx.errors import ConfigError
+from openral_mjx.core.errors import ConfigError
 from openral_mjx.physics import PhysicsSettings
 from openral_mjx.scenes import So101BoxOptions, make_scene
 from openral_mjx.scenes.so101_box import compose

@@ -7,7 +7,7 @@ import sys
 import pytest
 
 from openral_mjx import eval as eval_cli
-from openral_mjx.schema import load_report
+from openral_mjx.report import load_report
 from openral_mjx.stats import clopper_pearson_interval
 
 
@@ -302,7 +302,7 @@ def test_missing_viz_extra_names_the_install(monkeypatch, capsys, tmp_path):
 def test_sensor_frames_next_to_the_report(monkeypatch, capsys, tmp_path):
     """--frames K: a depth camera in tabletop_push's observation, the first episode's depth
     images saved beside the report and referenced from it, the reproducing command kept."""
-    from openral_mjx.frames import load_frames
+    from openral_mjx.evaluation.frames import load_frames
 
     out_path = tmp_path / "rep.json"
     argv = ["--n-envs", "2", "--max-steps", "3", "--policy", "zero", "--threads", "1"]

@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from openral_mjx import compare as compare_cli
-from openral_mjx.evaluate import evaluate
-from openral_mjx.schema import EvalReport, save_report
+from openral_mjx.evaluation import evaluate
+from openral_mjx.report import EvalReport, save_report
 from openral_mjx.stats import paired_comparison, unpaired_comparison
 
 

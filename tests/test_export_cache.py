@@ -7,9 +7,8 @@ from typing import Any
 import numpy as np
 import pytest
 
-from openral_mjx import compile_cache, export_cache
 from openral_mjx.policies import make_policy
-from openral_mjx.rollout import EpisodeRunner
+from openral_mjx.runner import EpisodeRunner, compile_cache, export_cache
 from openral_mjx.scenes import make_scene
 
 

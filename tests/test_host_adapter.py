@@ -14,17 +14,16 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from openral_mjx import compile_cache, export_cache
-from openral_mjx.errors import ConfigError
-from openral_mjx.evaluate import evaluate
+from openral_mjx.core.errors import ConfigError
+from openral_mjx.evaluation import evaluate
+from openral_mjx.evaluation.suite import merge_reports
 from openral_mjx.host.batch import BatchConfig, EnvBatch
 from openral_mjx.host.point_reach import IMAGE, TARGETS, PointReachEnv
 from openral_mjx.host.pool import RemoteError, Worker
 from openral_mjx.policies import make_policy
-from openral_mjx.rollout import EpisodeRunner, run_seeds
+from openral_mjx.runner import EpisodeRunner, compile_cache, export_cache, run_seeds
 from openral_mjx.scenes import make_scene
 from openral_mjx.stats import wilson_interval
-from openral_mjx.suite import merge_reports
 
 STEPS = 12
 

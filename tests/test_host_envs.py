@@ -5,7 +5,7 @@ import sys
 
 import pytest
 
-from openral_mjx.errors import ConfigError
+from openral_mjx.core.errors import ConfigError
 from openral_mjx.host import envs
 
 VERSION = f"{sys.version_info[0]}.{sys.version_info[1]}"

@@ -6,7 +6,7 @@ import jax
 import numpy as np
 import pytest
 
-from openral_mjx.errors import ConfigError
+from openral_mjx.core.errors import ConfigError
 from openral_mjx.policies.lerobot import key_map, lerobot_policy, read_features
 
 SD = jax.ShapeDtypeStruct

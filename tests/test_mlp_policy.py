@@ -10,7 +10,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from openral_mjx.errors import ConfigError
+from openral_mjx.core.errors import ConfigError
 from openral_mjx.policies import make_policy
 from openral_mjx.policies.mlp import (
     CONFIG_FILE,
@@ -22,7 +22,7 @@ from openral_mjx.policies.mlp import (
     to_action,
 )
 from openral_mjx.policies.normalizer import init_stats, normalize, update_stats
-from openral_mjx.rollout import EpisodeRunner
+from openral_mjx.runner import EpisodeRunner
 
 
 def test_running_stats_match_numpy():

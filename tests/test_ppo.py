@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from scipy.stats import norm
 
-from openral_mjx.errors import ConfigError
+from openral_mjx.core.errors import ConfigError
 from openral_mjx.training.env import BatchedEnv, EnvState
 from openral_mjx.training.ppo import PPOConfig, gae, gaussian_logp
 

@@ -2,8 +2,8 @@
 
 import pytest
 
-from openral_mjx import processes
-from openral_mjx.errors import ConfigError
+from openral_mjx.core.errors import ConfigError
+from openral_mjx.runner import processes
 
 
 def test_gpus_split_into_equal_groups():

@@ -24,7 +24,7 @@ import numpy as np
 import pytest
 
 from openral_mjx import raycast
-from openral_mjx.errors import ConfigError
+from openral_mjx.core.errors import ConfigError
 from openral_mjx.raycast.geoms import subtree
 
 TOL = 1e-4  # metres, float32 casts against float64 mj_multiRay

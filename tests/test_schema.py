@@ -7,10 +7,10 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from openral_mjx.errors import ConfigError
-from openral_mjx.evaluate import evaluate
-from openral_mjx.rollout import make_factor_fn
-from openral_mjx.schema import SCHEMA_VERSION, EvalReport, load_report, save_report
+from openral_mjx.core.errors import ConfigError
+from openral_mjx.evaluation import evaluate
+from openral_mjx.report import SCHEMA_VERSION, EvalReport, load_report, save_report
+from openral_mjx.runner import make_factor_fn
 
 
 @pytest.fixture(scope="module")
@@ -110,7 +110,7 @@ def test_saved_schema_2_report_still_loads():
 def test_failed_write_leaves_nothing(report, tmp_path):
     bad = report.to_dict()
     bad["success_rate"] = float("nan")  # not JSON: json.dump(allow_nan=False) raises
-    from openral_mjx.schema import write_json_atomic
+    from openral_mjx.core.files import write_json_atomic
 
     with pytest.raises(ValueError):
         write_json_atomic(tmp_path / "x.json", bad)
@@ -121,7 +121,7 @@ def test_written_file_has_ordinary_permissions(tmp_path):
     import os
     import stat
 
-    from openral_mjx.schema import write_json_atomic
+    from openral_mjx.core.files import write_json_atomic
 
     path = tmp_path / "p.json"
     write_json_atomic(path, {"a": 1})

@@ -12,15 +12,15 @@ import pytest
 from test_raycast import MOBILE, multiray
 
 from openral_mjx import raycast
-from openral_mjx.errors import ConfigError
-from openral_mjx.evaluate import run_evaluation
-from openral_mjx.frames import check_frames, load_frames, record_frames, save_frames
+from openral_mjx.core.errors import ConfigError
+from openral_mjx.evaluation import run_evaluation
+from openral_mjx.evaluation.frames import check_frames, load_frames, record_frames, save_frames
 from openral_mjx.physics import PhysicsSettings
 from openral_mjx.policies import make_policy
 from openral_mjx.raycast.geoms import subtree
-from openral_mjx.rollout import run_seeds, seed_keys
+from openral_mjx.report import load_report, save_report
+from openral_mjx.runner import run_seeds, seed_keys
 from openral_mjx.scenes import make_scene
-from openral_mjx.schema import load_report, save_report
 
 DEPTH = {"obs_depth_cameras": ["overhead", "wrist"], "obs_depth_size": [16, 10]}
 

@@ -6,9 +6,9 @@ with binomial draws (no physics) for the CLI's default shape (chunks of 1,024, t
 import numpy as np
 import pytest
 
-from openral_mjx.errors import ConfigError
-from openral_mjx.sequential import SequentialDesign, sufficient_episodes
+from openral_mjx.core.errors import ConfigError
 from openral_mjx.stats import clopper_pearson_interval, wilson_interval
+from openral_mjx.stats.sequential import SequentialDesign, sufficient_episodes
 
 
 def simulate(design: SequentialDesign, rate: float, reps: int, seed: int) -> tuple[np.ndarray, ...]:
@@ -134,7 +134,7 @@ def test_sequential_interval_agrees_with_fixed_n_far_from_the_boundary():
 def test_rule_takes_its_looks_from_the_runners_chunks():
     """The runner may run fewer envs than asked (memory) or more (a multiple of the devices):
     the design is fixed at the first look, from the chunk that actually ran."""
-    from openral_mjx.evaluate import SequentialRule
+    from openral_mjx.evaluation import SequentialRule
 
     rule = SequentialRule(0.1, 100)
     assert not rule({"success": np.zeros(30, bool) | (np.arange(30) % 2 == 0)})

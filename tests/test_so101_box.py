@@ -9,11 +9,11 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from openral_mjx.errors import ConfigError
-from openral_mjx.options import from_mapping, load_yaml
+from openral_mjx.core.errors import ConfigError
+from openral_mjx.core.options import from_mapping, load_yaml
 from openral_mjx.physics import PhysicsSettings
 from openral_mjx.policies import make_policy
-from openral_mjx.rollout import run_seeds
+from openral_mjx.runner import run_seeds
 from openral_mjx.scenes import So101Box, So101BoxOptions, make_scene
 
 

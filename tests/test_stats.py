@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from scipy import stats as sps
 
-from openral_mjx.errors import ConfigError
+from openral_mjx.core.errors import ConfigError
 from openral_mjx.stats import (
     binomial_interval,
     clopper_pearson_interval,

@@ -5,8 +5,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from openral_mjx.errors import ConfigError
-from openral_mjx.rollout import make_factor_fn
+from openral_mjx.core.errors import ConfigError
+from openral_mjx.runner import make_factor_fn
 from openral_mjx.scenes import make_scene
 
 
@@ -101,7 +101,7 @@ def test_unknown_option_is_rejected():
 def test_config_yaml_matches_defaults():
     from pathlib import Path
 
-    from openral_mjx.options import from_mapping, load_yaml
+    from openral_mjx.core.options import from_mapping, load_yaml
     from openral_mjx.scenes import TabletopPushOptions
 
     path = Path(__file__).parent.parent / "configs" / "tabletop_push.yaml"

@@ -5,10 +5,10 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from openral_mjx.errors import ConfigError
+from openral_mjx.core.errors import ConfigError
 from openral_mjx.physics import PhysicsSettings
 from openral_mjx.policies import make_policy
-from openral_mjx.rollout import run_seeds
+from openral_mjx.runner import run_seeds
 from openral_mjx.scenes import TabletopPush
 
 

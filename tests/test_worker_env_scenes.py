@@ -10,11 +10,11 @@ import sys
 import numpy as np
 import pytest
 
-from openral_mjx.evaluate import evaluate
+from openral_mjx.evaluation import evaluate
 from openral_mjx.host import envs
 from openral_mjx.host.batch import BatchConfig, EnvBatch
 from openral_mjx.host.pool import Worker, _shim_dir
-from openral_mjx.schema import load_report
+from openral_mjx.report import load_report
 
 ENV = "lerobot-libero"
 if not envs.is_ready(ENV):

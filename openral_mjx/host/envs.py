@@ -28,7 +28,7 @@ import sys
 import time
 from pathlib import Path
 
-from openral_mjx.errors import ConfigError, unknown
+from openral_mjx.core.errors import ConfigError, unknown
 
 
 @dataclasses.dataclass(frozen=True)

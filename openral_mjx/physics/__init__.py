@@ -7,7 +7,7 @@ from collections.abc import Callable
 import jax
 import mujoco
 
-from openral_mjx.errors import unknown
+from openral_mjx.core.errors import unknown
 from openral_mjx.physics.base import (
     PhysicsBackend,
     PhysicsSettings,

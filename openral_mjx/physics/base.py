@@ -18,7 +18,7 @@ import numpy as np
 from flax import struct
 
 from openral_mjx import raycast
-from openral_mjx.errors import ConfigError
+from openral_mjx.core.errors import ConfigError
 from openral_mjx.physics.cameras import RgbSpec, SensorSpec, sensor_key
 
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 
-from openral_mjx.options import check
+from openral_mjx.core.options import check
 from openral_mjx.raycast import VISIBLE_GROUPS, DepthSpec, LaserSpec
 
 

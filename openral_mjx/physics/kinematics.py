@@ -17,7 +17,7 @@ import jax.numpy as jnp
 import mujoco
 import numpy as np
 
-from openral_mjx import fixed_order as fo
+from openral_mjx.core import fixed_order as fo
 
 
 def _quat_to_mat(q: np.ndarray) -> np.ndarray:

@@ -17,7 +17,7 @@ import jax
 import jax.numpy as jnp
 import mujoco
 
-from openral_mjx.errors import ConfigError
+from openral_mjx.core.errors import ConfigError
 from openral_mjx.physics.base import Quantities, all_finite
 from openral_mjx.physics.cameras import SensorSpec, sensor_key
 from openral_mjx.physics.mjx_backend import MjxBackend, mjx

@@ -12,13 +12,13 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from openral_mjx.errors import ConfigError
+from openral_mjx.core.errors import ConfigError
+from openral_mjx.core.registry import Registry
 from openral_mjx.policies.base import Policy
 from openral_mjx.policies.depth_cnn import depth_cnn_policy
 from openral_mjx.policies.lerobot import lerobot_policy
 from openral_mjx.policies.mlp import check_compatible, load_mlp, mlp_policy
 from openral_mjx.policies.simple import random_policy, zero_policy
-from openral_mjx.registry import Registry
 
 PolicyFactory = Callable[[Any, str | None], Policy]
 POLICIES: Registry[PolicyFactory] = Registry("policy")

@@ -20,8 +20,8 @@ import flax.linen as nn
 import jax
 import jax.numpy as jnp
 
-from openral_mjx import fixed_order as fo
-from openral_mjx.errors import ConfigError
+from openral_mjx.core import fixed_order as fo
+from openral_mjx.core.errors import ConfigError
 from openral_mjx.policies.base import Policy
 
 _MAX_WIDTH = 16  # pixels across after the first pooling

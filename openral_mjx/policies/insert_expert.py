@@ -30,7 +30,7 @@ from collections.abc import Callable
 import jax
 import jax.numpy as jnp
 
-from openral_mjx import fixed_order as fo
+from openral_mjx.core import fixed_order as fo
 from openral_mjx.policies.base import Policy
 
 # q -> (site position, site rotation matrix, jacp (3, n), jacr (3, n)), world frame.

@@ -31,7 +31,7 @@ import jax.numpy as jnp
 import numpy as np
 import yaml
 
-from openral_mjx.errors import ConfigError
+from openral_mjx.core.errors import ConfigError
 from openral_mjx.host.envs import ensure_env
 from openral_mjx.host.pool import RemoteError, Worker, WorkerFailure, host_callback
 from openral_mjx.policies.base import Policy

@@ -29,12 +29,12 @@ import flax.linen as nn
 import jax
 import jax.numpy as jnp
 
-from openral_mjx import fixed_order as fo
-from openral_mjx.checkpoints import restore_tree, save_tree
-from openral_mjx.errors import ConfigError, unknown
+from openral_mjx.core import fixed_order as fo
+from openral_mjx.core.checkpoints import restore_tree, save_tree
+from openral_mjx.core.errors import ConfigError, unknown
+from openral_mjx.core.files import write_json_atomic
 from openral_mjx.policies.base import Policy
 from openral_mjx.policies.normalizer import RunningStats, init_stats, normalize
-from openral_mjx.schema import write_json_atomic
 
 MLP_FORMAT = "openral_mjx.mlp_policy/1"
 CONFIG_FILE = "mlp_policy.json"

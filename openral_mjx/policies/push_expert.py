@@ -14,7 +14,7 @@ from collections.abc import Callable
 import jax
 import jax.numpy as jnp
 
-from openral_mjx import fixed_order as fo
+from openral_mjx.core import fixed_order as fo
 from openral_mjx.policies.base import Policy
 
 # q -> (ee position, tool axis, d position / dq (3, n), d axis / dq (3, n))

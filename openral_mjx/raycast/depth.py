@@ -23,7 +23,7 @@ import jax.numpy as jnp
 import mujoco
 import numpy as np
 
-from openral_mjx.options import check
+from openral_mjx.core.options import check
 from openral_mjx.raycast import mount as mounts
 from openral_mjx.raycast.geoms import VISIBLE_GROUPS, GeomSet, body_ids, static_bounds, subtree
 

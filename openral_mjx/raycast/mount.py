@@ -9,7 +9,7 @@ import jax.numpy as jnp
 import mujoco
 import numpy as np
 
-from openral_mjx.errors import ConfigError
+from openral_mjx.core.errors import ConfigError
 from openral_mjx.raycast.geoms import is_static, mat_mat, mat_vec, quat_to_mat, rest_data
 
 

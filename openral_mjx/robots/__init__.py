@@ -5,7 +5,7 @@ from __future__ import annotations
 import dataclasses
 from pathlib import Path
 
-from openral_mjx.registry import Registry
+from openral_mjx.core.registry import Registry
 
 _HERE = Path(__file__).parent
 

@@ -7,10 +7,10 @@ from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
-from openral_mjx.errors import ConfigError
-from openral_mjx.options import from_mapping
+from openral_mjx.core.errors import ConfigError
+from openral_mjx.core.options import from_mapping
+from openral_mjx.core.registry import Registry
 from openral_mjx.physics import PhysicsSettings, resolve_backend_name
-from openral_mjx.registry import Registry
 from openral_mjx.scenes.base import Scene, State
 from openral_mjx.scenes.libero import LiberoOptions, libero, suite_tasks
 from openral_mjx.scenes.point_reach import PointReachOptions, point_reach
@@ -89,12 +89,19 @@ def make_scene(
     entry = SCENES.get(name)
     if entry.backends is not None:  # host scenes: refuse a MuJoCo backend rather than ignore it
         resolve_scene_backend(name, backend)
+    options = scene_options(name, overrides)
+    return entry.build(options, backend=backend, settings=settings)
+
+
+def scene_options(name: str, overrides: Mapping[str, Any] | None = None) -> Any:
+    """Scene `name`'s options dataclass with `overrides` applied and checked (unknown keys,
+    types, ranges, a robot the scene does not take: `ConfigError`), without building it."""
+    entry = SCENES.get(name)
     overrides = dict(overrides or {})
     check_robot(name, overrides.get("robot"), overrides.get("robot_mjcf"))
     if entry.fixed_robot is not None:
         overrides.pop("robot_mjcf", None)  # None here: a fixed-robot scene takes no MJCF
-    options = from_mapping(entry.options_cls, overrides)
-    return entry.build(options, backend=backend, settings=settings)
+    return from_mapping(entry.options_cls, overrides)
 
 
 __all__ = [
@@ -109,5 +116,6 @@ __all__ = [
     "check_robot",
     "make_scene",
     "resolve_scene_backend",
+    "scene_options",
     "scene_suite",
 ]

@@ -25,10 +25,10 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from openral_mjx.errors import ConfigError
+from openral_mjx.core.errors import ConfigError
+from openral_mjx.core.options import check
 from openral_mjx.host.batch import BatchConfig, EnvBatch, default_workers
 from openral_mjx.host.pool import RemoteError, WorkerFailure, host_callback
-from openral_mjx.options import check
 from openral_mjx.scenes.base import Scene, State
 
 

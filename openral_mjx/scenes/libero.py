@@ -16,8 +16,8 @@ from __future__ import annotations
 
 import dataclasses
 
-from openral_mjx.errors import ConfigError, unknown
-from openral_mjx.options import check
+from openral_mjx.core.errors import ConfigError, unknown
+from openral_mjx.core.options import check
 from openral_mjx.scenes.host_scene import HostOptions, HostScene
 from openral_mjx.scenes.robosuite_scene import panda_osc_scene
 

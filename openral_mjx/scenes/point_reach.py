@@ -11,9 +11,9 @@ from __future__ import annotations
 
 import dataclasses
 
+from openral_mjx.core.options import check
 from openral_mjx.host.envs import ensure_env
 from openral_mjx.host.point_reach import IMAGE, TARGETS
-from openral_mjx.options import check
 from openral_mjx.scenes.host_scene import HostOptions, HostScene, HostSceneSpec
 
 

@@ -13,9 +13,9 @@ from __future__ import annotations
 import dataclasses
 from typing import Any
 
-from openral_mjx.errors import unknown
+from openral_mjx.core.errors import unknown
+from openral_mjx.core.options import check
 from openral_mjx.host.envs import ensure_env
-from openral_mjx.options import check
 from openral_mjx.scenes.host_scene import HostOptions, HostScene, HostSceneSpec
 
 ENV = "lerobot-libero"

@@ -16,7 +16,7 @@ import math
 import jax
 import jax.numpy as jnp
 
-from openral_mjx.options import check
+from openral_mjx.core.options import check
 from openral_mjx.physics import Quantities
 from openral_mjx.physics.cameras import RgbSpec, SensorSpec, sensor_key
 from openral_mjx.raycast import DepthSpec, LaserSpec

@@ -35,9 +35,9 @@ import jax.numpy as jnp
 import mujoco
 import numpy as np
 
-from openral_mjx import fixed_order as fo
-from openral_mjx.errors import ConfigError
-from openral_mjx.options import check
+from openral_mjx.core import fixed_order as fo
+from openral_mjx.core.errors import ConfigError
+from openral_mjx.core.options import check
 from openral_mjx.physics import PhysicsSettings, QuantitySpec, make_backend
 from openral_mjx.physics.kinematics import site_kinematics
 from openral_mjx.policies.base import Policy

@@ -22,11 +22,11 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 
-from openral_mjx.errors import ConfigError
-from openral_mjx.options import to_dict
+from openral_mjx.core.errors import ConfigError
+from openral_mjx.core.options import to_dict
 from openral_mjx.policies.mlp import MlpConfig, check_architecture, distribution, init_params
 from openral_mjx.policies.normalizer import init_stats, update_stats
-from openral_mjx.rollout import run_seeds
+from openral_mjx.runner import run_seeds
 from openral_mjx.scenes.base import Scene
 
 

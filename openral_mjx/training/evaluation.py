@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 
 from openral_mjx.policies.mlp import MlpConfig, mlp_policy
-from openral_mjx.rollout import EpisodeRunner
+from openral_mjx.runner import EpisodeRunner
 from openral_mjx.scenes.base import Scene
 from openral_mjx.stats import wilson_interval
 

@@ -36,7 +36,7 @@ import jax.numpy as jnp
 import optax
 from flax import struct
 
-from openral_mjx.errors import ConfigError
+from openral_mjx.core.errors import ConfigError
 from openral_mjx.policies.mlp import MlpConfig, distribution, normalized_obs, to_action
 from openral_mjx.policies.normalizer import update_stats
 from openral_mjx.scenes.base import Scene

@@ -17,9 +17,9 @@ import shutil
 from pathlib import Path
 from typing import Any
 
-from openral_mjx.checkpoints import restore_tree, save_tree
-from openral_mjx.errors import ConfigError
-from openral_mjx.schema import write_json_atomic
+from openral_mjx.core.checkpoints import restore_tree, save_tree
+from openral_mjx.core.errors import ConfigError
+from openral_mjx.core.files import write_json_atomic
 
 RUN_FORMAT = "openral_mjx.ppo_run/1"
 

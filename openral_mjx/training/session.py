@@ -18,7 +18,7 @@ from typing import Any
 
 import jax
 
-from openral_mjx.errors import ConfigError
+from openral_mjx.core.errors import ConfigError
 from openral_mjx.policies.mlp import CONFIG_FILE, MlpConfig, init_params, save_mlp
 from openral_mjx.scenes.base import Scene
 from openral_mjx.training.evaluation import VALIDATION_SEEDS, EvalResult, HeldOutEvaluator

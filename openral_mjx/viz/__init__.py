@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import importlib.util
 
-from openral_mjx.errors import ConfigError
+from openral_mjx.core.errors import ConfigError
 
 INSTALL_HINT = "pip install 'openral_mjx[viz]'"
 _MODULES = {"matplotlib": "matplotlib", "av": "PyAV"}

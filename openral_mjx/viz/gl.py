@@ -20,7 +20,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from openral_mjx.errors import ConfigError
+from openral_mjx.core.errors import ConfigError
 
 _PROBE = """
 import importlib, sys

@@ -15,7 +15,8 @@ from typing import Any
 
 import numpy as np
 
-from openral_mjx.schema import EvalReport, atomic_path
+from openral_mjx.core.files import atomic_path
+from openral_mjx.report import EvalReport
 
 OUTCOME_COLORS = {"success": "#2a9d4b", "failure": "#c8553d", "diverged": "#6c5b7b"}
 MIN_RUNNING = 10  # reward curves are drawn while at least this many episodes of a group run

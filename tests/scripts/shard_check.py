@@ -9,7 +9,7 @@ import numpy as np
 
 from openral_mjx.physics import PhysicsSettings
 from openral_mjx.policies import make_policy
-from openral_mjx.rollout import run_seeds, trace_seeds
+from openral_mjx.runner import run_seeds, trace_seeds
 from openral_mjx.scenes import TabletopPush
 
 backend = sys.argv[1]

@@ -33,7 +33,7 @@ _PACKAGES = ("jax", "jaxlib", "mujoco", "mujoco-mjx", "flax", "numpy")
 @functools.cache
 def source_digest() -> str:
     """SHA-256 over every Python file of this package (paths and contents)."""
-    root = Path(__file__).parent
+    root = Path(__file__).resolve().parent.parent  # the openral_mjx package
     h = hashlib.sha256()
     for path in sorted(root.rglob("*.py")):
         h.update(str(path.relative_to(root)).encode())

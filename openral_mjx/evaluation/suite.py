@@ -13,10 +13,10 @@ import dataclasses
 from collections.abc import Callable, Mapping
 from typing import Any
 
-from openral_mjx.evaluate import evaluate
+from openral_mjx.evaluation.run import evaluate
 from openral_mjx.policies import make_policy
+from openral_mjx.report import EvalReport, TaskRow
 from openral_mjx.scenes import make_scene, scene_suite
-from openral_mjx.schema import EvalReport, TaskRow
 from openral_mjx.stats import wilson_interval
 
 

@@ -18,8 +18,8 @@ from typing import Any
 
 import numpy as np
 
-from openral_mjx.evaluate import Evaluation
-from openral_mjx.rollout import seed_chunks, trace_seeds
+from openral_mjx.evaluation.run import Evaluation
+from openral_mjx.runner import seed_chunks, trace_seeds
 
 _COMPARED = ("success", "steps", "diverged", "total_reward")
 

@@ -24,7 +24,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from openral_mjx.errors import ConfigError
+from openral_mjx.core.errors import ConfigError
 
 COORDINATOR = "OPENRAL_MJX_COORDINATOR"  # host:port of process 0's coordination service
 NUM_PROCESSES = "OPENRAL_MJX_NUM_PROCESSES"

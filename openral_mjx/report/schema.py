@@ -8,16 +8,10 @@ version); any other version is an error.
 
 from __future__ import annotations
 
-import contextlib
 import dataclasses
-import json
-import os
-import tempfile
-from collections.abc import Iterator
-from pathlib import Path
 from typing import Any
 
-from openral_mjx.errors import ConfigError
+from openral_mjx.core.errors import ConfigError
 
 SCHEMA_VERSION = "openral_mjx.eval_report/3"
 # /2 has the same fields as /3; /3 only widened what the latency fields and metadata may hold
@@ -41,9 +35,9 @@ class EpisodeResult:
     `factors` (the scene's randomised factors of this episode, name -> value) and, for host
     scenes, `error` (why a worker fault ended the episode, or null).
     `frames` is None, or (for the first episodes of a run with `--frames`, see
-    `openral_mjx.frames`) one entry per sensor, `{"sensor", "file", "array", "shape", "dtype",
-    "reproduced"}`: its readings at every step from the reset state to the episode's end,
-    stored as `array` in the `.npz` `file` beside the report.
+    `openral_mjx.evaluation.frames`) one entry per sensor, `{"sensor", "file", "array",
+    "shape", "dtype", "reproduced"}`: its readings at every step from the reset state to the
+    episode's end, stored as `array` in the `.npz` `file` beside the report.
     """
 
     success: bool
@@ -217,67 +211,3 @@ def _build(cls: type, data: Any, where: str) -> Any:
     if unknown or missing:
         raise ConfigError(f"{where}: unknown fields {unknown}, missing fields {missing}")
     return cls(**data)
-
-
-def _umask() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
-
-
-@contextlib.contextmanager
-def atomic_path(path: Path) -> Iterator[Path]:
-    """A temporary path beside `path` to write to; on success it replaces `path`, so `path`
-    is never half-written (on failure the temporary file is removed). The file gets the
-    permissions a plain `open(path, "w")` would (mkstemp's are 0600)."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    os.close(fd)
-    try:
-        yield Path(tmp)
-        os.chmod(tmp, 0o666 & ~_umask())
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-
-
-def write_text_atomic(path: Path, text: str) -> None:
-    """Write `text` to `path` via a temporary file and `os.replace`: never half-written."""
-    with atomic_path(path) as tmp:
-        tmp.write_text(text)
-
-
-def write_json_atomic(path: Path, data: Any) -> None:
-    """Write indented JSON to `path` atomically (NaN and infinity are errors)."""
-    write_text_atomic(path, json.dumps(data, indent=1, allow_nan=False) + "\n")
-
-
-def report_json(report: EvalReport) -> str:
-    """The report as indented JSON with one compact line per episode, so that a report of
-    100,000 episodes stays a file of tens of MB that a line-oriented tool can still read."""
-    data = report.to_dict()
-    episodes = data.pop("episodes")
-    head = json.dumps(data, indent=1, allow_nan=False)
-    rows = ",\n  ".join(json.dumps(e, separators=(",", ":"), allow_nan=False) for e in episodes)
-    body = f"\n  {rows}\n " if rows else ""
-    return f'{head[:-2]},\n "episodes": [{body}]\n}}\n'
-
-
-def save_report(report: EvalReport, path: Path) -> None:
-    write_text_atomic(path, report_json(report))
-
-
-def load_report(path: Path) -> EvalReport:
-    """Read a report back; every problem (missing file, bad JSON, another schema version,
-    unknown or missing fields) is a `ConfigError` that names the file."""
-    if not path.is_file():
-        raise ConfigError(f"report {str(path)!r} does not exist")
-    try:
-        data = json.loads(path.read_text())
-    except json.JSONDecodeError as e:
-        raise ConfigError(f"report {str(path)!r} is not valid JSON: {e}") from None
-    try:
-        return EvalReport.from_dict(data)
-    except ConfigError as e:
-        raise ConfigError(f"report {str(path)!r}: {e}") from None

@@ -15,11 +15,12 @@ from pathlib import Path
 
 import numpy as np
 
-from openral_mjx.errors import ConfigError
-from openral_mjx.evaluate import Evaluation
+from openral_mjx.core.errors import ConfigError
+from openral_mjx.core.files import atomic_path
+from openral_mjx.evaluation.replay import choose_seeds, trace_episodes
+from openral_mjx.evaluation.run import Evaluation
+from openral_mjx.report import EvalReport
 from openral_mjx.scenes import Scene
-from openral_mjx.schema import EvalReport, atomic_path
-from openral_mjx.viz.record import choose_seeds, trace_episodes
 
 
 def check_frames(scene: Scene, k: int) -> None:

@@ -15,7 +15,7 @@ from typing import Any, TypeVar
 
 import yaml
 
-from openral_mjx.errors import ConfigError, unknown
+from openral_mjx.core.errors import ConfigError, unknown
 
 T = TypeVar("T")
 

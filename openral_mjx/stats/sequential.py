@@ -33,8 +33,12 @@ import numpy as np
 from scipy import optimize, signal
 from scipy import stats as sps
 
-from openral_mjx.errors import ConfigError
-from openral_mjx.stats import check_confidence, clopper_pearson_interval, episodes_for_halfwidth
+from openral_mjx.core.errors import ConfigError
+from openral_mjx.stats.intervals import (
+    check_confidence,
+    clopper_pearson_interval,
+    episodes_for_halfwidth,
+)
 
 RULE = (
     "stop at the first look (after each chunk) whose fixed-n Clopper-Pearson half-width is <= "

@@ -38,7 +38,7 @@ import numpy as np
 from openral_mjx import raycast
 from openral_mjx.physics.mjx_backend import mjx
 from openral_mjx.raycast.geoms import subtree
-from openral_mjx.rollout import seed_keys
+from openral_mjx.runner import seed_keys
 
 DEPTH_SIZES = ((64, 48), (128, 96))
 LASER_BEAMS = 360

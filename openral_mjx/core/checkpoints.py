@@ -24,7 +24,7 @@ import jax.numpy as jnp
 import numpy as np
 import orbax.checkpoint as ocp
 
-from openral_mjx.errors import ConfigError
+from openral_mjx.core.errors import ConfigError
 
 # Orbax logs every save and restore at INFO through absl; keep the CLIs' output ours.
 logging.getLogger("absl").setLevel(logging.WARNING)

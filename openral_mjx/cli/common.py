@@ -9,7 +9,7 @@ from typing import NoReturn, TypeVar
 
 from rich.console import Console
 
-from openral_mjx.errors import ConfigError
+from openral_mjx.core.errors import ConfigError
 from openral_mjx.host.pool import INTERRUPTED
 
 T = TypeVar("T")

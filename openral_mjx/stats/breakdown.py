@@ -12,9 +12,9 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from openral_mjx.errors import ConfigError
-from openral_mjx.schema import BreakdownRow
-from openral_mjx.stats import wilson_interval
+from openral_mjx.core.errors import ConfigError
+from openral_mjx.report import BreakdownRow
+from openral_mjx.stats.intervals import wilson_interval
 
 
 def quantile_edges(values: np.ndarray, n_bins: int) -> np.ndarray:

@@ -1,0 +1,17 @@
+"""The evaluation library behind `python -m openral_mjx.eval`: build a scene, roll out seeds
+with the runner, aggregate the report (`run`); suites of tasks (`suite`); re-simulating chosen
+episodes step by step (`replay`) and saving their sensor frames (`frames`)."""
+
+from openral_mjx.evaluation.provenance import device_description, package_versions
+from openral_mjx.evaluation.run import Evaluation, build_scene, evaluate, run_evaluation
+from openral_mjx.evaluation.sequential import SequentialRule
+
+__all__ = [
+    "Evaluation",
+    "SequentialRule",
+    "build_scene",
+    "device_description",
+    "evaluate",
+    "package_versions",
+    "run_evaluation",
+]

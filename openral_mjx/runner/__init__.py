@@ -1,0 +1,48 @@
+"""The batched episode runner: `vmap` over envs, one `lax.scan` over control steps, one `jit`.
+
+`episode` is the pure-JAX episode of a batch of seeds; `chunks` runs any number of seeds
+through it in fixed-size batches (`EpisodeRunner`, `run_seeds`); `factors` computes each seed's
+episode factors; `trace` re-runs chosen seeds step by step. Below them: `device_layout` (one
+program per device over a 1-D env mesh), `memory` (fit the batch into device memory),
+`export_cache` and `compile_cache` (warm starts), and `processes` (several processes as one
+`jax.distributed` job). The runner knows no particular scene: it uses the `Scene` and `Policy`
+contracts only.
+"""
+
+from openral_mjx.runner.chunks import (
+    FACTOR_PREFIX,
+    INFO_PREFIX,
+    EpisodeRunner,
+    RunTiming,
+    check_counts,
+    outcome_arrays,
+    run_seeds,
+    seed_chunks,
+)
+from openral_mjx.runner.episode import (
+    TRACES,
+    EpisodeArrays,
+    make_episode_fn,
+    make_trace_fn,
+    seed_keys,
+)
+from openral_mjx.runner.factors import make_factor_fn
+from openral_mjx.runner.trace import trace_seeds
+
+__all__ = [
+    "FACTOR_PREFIX",
+    "INFO_PREFIX",
+    "TRACES",
+    "EpisodeArrays",
+    "EpisodeRunner",
+    "RunTiming",
+    "check_counts",
+    "make_episode_fn",
+    "make_factor_fn",
+    "make_trace_fn",
+    "outcome_arrays",
+    "run_seeds",
+    "seed_chunks",
+    "seed_keys",
+    "trace_seeds",
+]

@@ -1,0 +1,61 @@
+"""Success-rate statistics: binomial intervals (`intervals`), comparisons of two policies
+(`comparison`, and `report_comparison` for two reports), the exact group-sequential design
+(`sequential`) and the success breakdown by episode factor (`breakdown`).
+
+A new statistic goes in the module of its kind, with an exact or simulated oracle in
+`tests/test_stats.py`; what users call is re-exported here.
+"""
+
+from openral_mjx.stats.breakdown import breakdown, format_breakdown
+from openral_mjx.stats.comparison import (
+    UNPAIRED_TESTS,
+    Comparison,
+    mcnemar_exact_pvalue,
+    newcombe_interval,
+    newcombe_paired_interval,
+    paired_comparison,
+    two_proportion_z_pvalue,
+    unpaired_comparison,
+)
+from openral_mjx.stats.intervals import (
+    INTERVAL_METHODS,
+    binomial_interval,
+    check_confidence,
+    clopper_pearson_interval,
+    episodes_for_halfwidth,
+    wilson_interval,
+    z_value,
+)
+from openral_mjx.stats.report_comparison import (
+    ReportComparison,
+    check_comparable,
+    compare_reports,
+    format_comparison,
+)
+from openral_mjx.stats.sequential import SequentialDesign, sufficient_episodes
+
+__all__ = [
+    "INTERVAL_METHODS",
+    "UNPAIRED_TESTS",
+    "Comparison",
+    "ReportComparison",
+    "SequentialDesign",
+    "binomial_interval",
+    "breakdown",
+    "check_comparable",
+    "check_confidence",
+    "clopper_pearson_interval",
+    "compare_reports",
+    "episodes_for_halfwidth",
+    "format_breakdown",
+    "format_comparison",
+    "mcnemar_exact_pvalue",
+    "newcombe_interval",
+    "newcombe_paired_interval",
+    "paired_comparison",
+    "sufficient_episodes",
+    "two_proportion_z_pvalue",
+    "unpaired_comparison",
+    "wilson_interval",
+    "z_value",
+]

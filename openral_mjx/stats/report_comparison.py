@@ -1,0 +1,145 @@
+"""Two evaluation reports compared: paired on their common seeds, else as independent samples.
+
+Seed s is the same initial state in both runs of a scene and task, so the two outcomes of a
+shared seed are a matched pair (pairing removes the between-seed variation): exact McNemar
+test and Newcombe's paired interval. Reports with no seed in common (or compared `unpaired`)
+use a two-proportion z test or Fisher's exact test and Newcombe's hybrid-score interval.
+Reports of another scene or task are not comparable (`ConfigError`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from openral_mjx.core.errors import ConfigError, unknown
+from openral_mjx.report import EvalReport
+from openral_mjx.stats.comparison import (
+    UNPAIRED_TESTS,
+    Comparison,
+    paired_comparison,
+    unpaired_comparison,
+)
+from openral_mjx.stats.intervals import check_confidence
+
+
+@dataclasses.dataclass(frozen=True)
+class ReportComparison:
+    """A `Comparison` of two reports, with how the episodes were matched and what to know."""
+
+    comparison: Comparison
+    common_seeds: int
+    left_out_a: int
+    left_out_b: int
+    notes: tuple[str, ...]
+
+
+def check_comparable(a: EvalReport, b: EvalReport) -> None:
+    """Raise `ConfigError` unless both reports evaluate the same scene and task."""
+    for field in ("scene", "task"):
+        va, vb = getattr(a, field), getattr(b, field)
+        if va != vb:
+            raise ConfigError(f"reports are not comparable: {field} {va!r} (A) vs {vb!r} (B)")
+
+
+def _outcomes(report: EvalReport, label: str) -> dict[int, bool]:
+    out = {int(e.metadata["seed"]): bool(e.success) for e in report.episodes}
+    if len(out) != len(report.episodes):
+        raise ConfigError(f"report {label} has repeated seeds; cannot pair its episodes")
+    return out
+
+
+def _notes(a: EvalReport, b: EvalReport) -> list[str]:
+    notes = []
+    differ = [f for f in ("robot", "backend", "max_steps") if getattr(a, f) != getattr(b, f)]
+    keys = sorted(set(a.options) | set(b.options))
+    options = [k for k in keys if a.options.get(k) != b.options.get(k) and k != "backend"]
+    if differ or options:
+        what = ", ".join(differ + [f"option {k}" for k in options])
+        notes.append(f"the runs differ in {what}")
+    for label, r in (("A", a), ("B", b)):
+        if r.sequential is not None:
+            notes.append(
+                f"{label} stopped sequentially; the comparison treats its episodes as a fixed "
+                "sample"
+            )
+    return notes
+
+
+def compare_reports(
+    a: EvalReport,
+    b: EvalReport,
+    confidence: float = 0.95,
+    unpaired: bool = False,
+    test: str = "auto",
+) -> ReportComparison:
+    """B against A: paired on common seeds when there are any (unless `unpaired`)."""
+    check_confidence(confidence)
+    if test not in UNPAIRED_TESTS:
+        raise unknown("unpaired test", test, UNPAIRED_TESTS)
+    check_comparable(a, b)
+    notes = _notes(a, b)
+    oa, ob = _outcomes(a, "A"), _outcomes(b, "B")
+    common = sorted(set(oa) & set(ob))
+    if common and not unpaired:
+        comparison = paired_comparison(
+            np.array([oa[s] for s in common]), np.array([ob[s] for s in common]), confidence
+        )
+        left_a, left_b = len(oa) - len(common), len(ob) - len(common)
+        if left_a or left_b:
+            notes.append(
+                f"{left_a} episodes of A and {left_b} of B have no partner and are left out "
+                "(--unpaired uses them all, ignoring that shared seeds are correlated)"
+            )
+        return ReportComparison(comparison, len(common), left_a, left_b, tuple(notes))
+    if common:
+        notes.append(
+            f"the reports share {len(common)} seeds: the unpaired test ignores their correlation"
+        )
+    comparison = unpaired_comparison(
+        sum(oa.values()), len(oa), sum(ob.values()), len(ob), confidence, test
+    )
+    return ReportComparison(comparison, len(common), 0, 0, tuple(notes))
+
+
+def _p(p: float) -> str:
+    return "< 1e-300" if p < 1e-300 else f"= {p:.2g}"
+
+
+def _points(x: float) -> str:
+    return f"{100 * x:+.1f}"
+
+
+def format_comparison(rc: ReportComparison, a: EvalReport, b: EvalReport, names=("A", "B")) -> str:
+    """Human-readable lines: both rates, the matching, the difference, the verdict, notes."""
+    c = rc.comparison
+    lines = []
+    for label, name, r in (("A", names[0], a), ("B", names[1], b)):
+        lines.append(
+            f"{label}: {name}  {r.scene}/{r.policy} on {r.backend}: {r.successes}/{r.n_episodes}"
+            f" = {100 * r.success_rate:.1f}% [{100 * r.ci_low:.1f}, {100 * r.ci_high:.1f}]"
+        )
+    if c.paired:
+        lines.append(
+            f"paired on {rc.common_seeds:,} common seeds: both succeed {c.both}, only A "
+            f"{c.only_a}, only B {c.only_b}, neither {c.neither}"
+        )
+        method, test = "Newcombe paired", "exact McNemar"
+    else:
+        lines.append(f"unpaired: {c.n_a:,} episodes of A, {c.n_b:,} of B")
+        method = "Newcombe hybrid score"
+        test = "Fisher's exact" if c.test == "fisher-exact" else "two-proportion z"
+    level = round(100 * c.confidence)
+    lines.append(
+        f"B - A = {_points(c.difference)} points, {level}% CI [{_points(c.ci_low)}, "
+        f"{_points(c.ci_high)}] ({method}); {test} p {_p(c.p_value)}"
+    )
+    alpha = 1 - c.confidence
+    if c.p_value < alpha:
+        direction = "higher" if c.difference > 0 else "lower"
+        lines.append(f"B's success rate is {direction} than A's at the {100 * alpha:.3g}% level")
+    else:
+        lines.append(f"no difference detected at the {100 * alpha:.3g}% level")
+    lines += [f"note: {n}" for n in rc.notes]
+    return "\n".join(lines)

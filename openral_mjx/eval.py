@@ -1,6 +1,12 @@
 """`python -m openral_mjx.eval`: success rate with a confidence interval, throughput, a report.
 
 Example: ``python -m openral_mjx.eval --scene tabletop_push --n-envs 1024``.
+
+The command is a pipeline of named steps, each a function of what the step before returned:
+`validate` (every flag and option, the report path, before anything is built) -> `build` (the
+scene, the video renderer) -> `execute` (the evaluation, with a progress bar) -> `write`
+(report, frames, plots, videos) -> `show` (the summary and where each file went). The work
+itself is the library's (`openral_mjx.evaluation`); this module parses, checks and prints.
 """
 
 from __future__ import annotations
@@ -17,10 +23,12 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, T
 
 from openral_mjx.cli.common import command_line, guarded, stderr
 from openral_mjx.core.errors import ConfigError
+from openral_mjx.core.files import check_writable
 from openral_mjx.core.options import load_yaml, parse_overrides
 from openral_mjx.evaluation import Evaluation, build_scene, run_evaluation
 from openral_mjx.evaluation.frames import check_frames, record_frames, save_frames
-from openral_mjx.evaluation.replay import choose_seeds, trace_episodes
+from openral_mjx.evaluation.replay import EpisodeTrace, choose_seeds, trace_episodes
+from openral_mjx.evaluation.run import check_run
 from openral_mjx.evaluation.suite import evaluate_suite, format_tasks
 from openral_mjx.physics import BACKEND_NAMES
 from openral_mjx.policies import POLICIES
@@ -28,9 +36,15 @@ from openral_mjx.report import EvalReport, load_report, save_report
 from openral_mjx.robots import ROBOTS
 from openral_mjx.runner import processes
 from openral_mjx.runner.compile_cache import enable_compilation_cache
-from openral_mjx.scenes import SCENES, check_robot, resolve_scene_backend, scene_suite
-from openral_mjx.stats.breakdown import format_breakdown
-from openral_mjx.stats.report_comparison import compare_reports, format_comparison
+from openral_mjx.scenes import (
+    SCENES,
+    Scene,
+    check_robot,
+    resolve_scene_backend,
+    scene_options,
+    scene_suite,
+)
+from openral_mjx.stats import compare_reports, format_breakdown, format_comparison
 from openral_mjx.viz import require_viz
 from openral_mjx.viz.gl import GLUnavailable, camera_id, gl_backend
 from openral_mjx.viz.plots import write_plots
@@ -110,18 +124,100 @@ class EvalArgs:
     """List scenes, policies, robots and backends, then exit."""
 
 
-def _listing() -> str:
-    return "\n".join(
-        [
-            f"scenes:   {', '.join(SCENES.names())}",
-            f"policies: {', '.join(POLICIES.names())}",
-            f"robots:   {', '.join(ROBOTS.names())}",
-            f"backends: {', '.join(BACKEND_NAMES)} (MuJoCo scenes), host (host scenes)",
-        ]
+# ---- validate --------------------------------------------------------------------------------
+
+
+@dataclasses.dataclass(frozen=True)
+class EvalPlan:
+    """An `eval` invocation checked in full: what to run and where every file goes.
+
+    Nothing has been built or run to get it; `validate` is the only step that can reject the
+    user's input without having spent time first (`build` still checks what needs the compiled
+    model: the video camera and the scene's sensors for `--frames`).
+    """
+
+    args: EvalArgs
+    backend: str
+    options: dict
+    out: Path
+    baseline: EvalReport | None
+    command: str
+
+    @property
+    def want_video(self) -> bool:
+        return self.args.video > 0 or self.args.video_failures > 0
+
+    @property
+    def stem(self) -> Path:
+        """The report path without `.json`: plots and videos are named after it."""
+        return self.out.with_suffix("")
+
+    @property
+    def frames_file(self) -> Path | None:
+        return self.out.with_name(f"{self.stem.name}.frames.npz") if self.args.frames else None
+
+    @property
+    def videos_dir(self) -> Path:
+        return self.stem.with_name(f"{self.stem.name}_videos")
+
+
+def validate(args: EvalArgs) -> EvalPlan:
+    """Check every flag, option and path, and load `--compare-with`; raise `ConfigError` naming
+    the first bad value. Touches no device where the backend is named (a `--processes`
+    launcher must not take the GPUs its processes will use)."""
+    SCENES.get(args.scene)
+    POLICIES.get(args.policy.partition(":")[0])
+    if args.processes != 1:
+        _check_processes(args)
+    backend = resolve_scene_backend(args.scene, args.backend)
+    options = _scene_options(args)
+    check_run(
+        args.n_envs,
+        args.n_episodes,
+        args.target_halfwidth,
+        args.max_episodes,
+        args.max_steps,
+        args.seed,
+        args.factor_bins,
     )
+    if min(args.video, args.video_failures) < 0:
+        raise ConfigError(
+            f"--video and --video-failures must be >= 0, got {args.video}, {args.video_failures}"
+        )
+    if args.frames < 0:
+        raise ConfigError(f"frames must be >= 0, got {args.frames}")
+    want_video = args.video > 0 or args.video_failures > 0
+    if want_video or args.plots:
+        require_viz()
+    if (want_video or args.frames) and backend == "host":
+        raise ConfigError(
+            f"--video and --frames re-simulate episodes in MuJoCo; scene {args.scene!r} runs in "
+            "host workers: drop --video/--video-failures/--frames (--plots works)"
+        )
+    if args.suite is not None:
+        _check_suite(args, want_video)
+    out = args.out or _default_out(args)
+    check_writable(out)
+    baseline = None
+    if args.compare_with is not None:
+        baseline = load_report(args.compare_with)
+        if baseline.scene != args.scene:
+            raise ConfigError(
+                f"reports are not comparable: scene {baseline.scene!r} ({args.compare_with}) "
+                f"vs {args.scene!r}"
+            )
+    return EvalPlan(args, backend, options, out, baseline, _reproduce(args, backend, out))
+
+
+def _default_out(args: EvalArgs) -> Path:
+    stamp = dt.datetime.now().strftime("%Y%m%d-%H%M%S")
+    policy_tag = re.sub(r"[^A-Za-z0-9_.-]+", "-", args.policy).strip("-")  # mlp:a/b: mlp-a-b
+    return Path("results") / f"{args.scene}_{policy_tag}_{stamp}.json"
 
 
 def _scene_options(args: EvalArgs) -> dict:
+    """The scene's option overrides from --config, --opt, --task and the robot flags, checked
+    against the scene's options class."""
     check_robot(args.scene, args.robot, args.robot_mjcf)
     options: dict = {}
     if args.config is not None:
@@ -136,167 +232,8 @@ def _scene_options(args: EvalArgs) -> dict:
         if not args.robot_mjcf.is_file():
             raise ConfigError(f"robot MJCF {str(args.robot_mjcf)!r} does not exist")
         options["robot_mjcf"] = str(args.robot_mjcf)
+    scene_options(args.scene, options)
     return options
-
-
-def _reproduce(args: EvalArgs, backend: str, out: Path) -> str:
-    argv = [
-        "--scene",
-        args.scene,
-        "--policy",
-        args.policy,
-        "--backend",
-        backend,
-        "--n-envs",
-        str(args.n_envs),
-        "--seed",
-        str(args.seed),
-        "--out",
-        str(out),
-    ]
-    for flag, value in (
-        ("--task", args.task),
-        ("--suite", args.suite),
-        ("--n-episodes", args.n_episodes),
-        ("--target-halfwidth", args.target_halfwidth),
-        ("--max-episodes", args.max_episodes),
-        ("--max-steps", args.max_steps),
-        ("--robot", args.robot),
-        ("--robot-mjcf", args.robot_mjcf),
-        ("--config", args.config),
-        ("--threads", args.threads),
-        ("--contacts-per-env", args.contacts_per_env),
-        ("--devices", args.devices),
-        ("--processes", args.processes if args.processes != 1 else None),
-        ("--factor-bins", args.factor_bins if args.factor_bins != 5 else None),
-        ("--frames", args.frames or None),
-    ):
-        if value is not None:
-            argv += [flag, str(value)]
-    if args.opt:
-        argv += ["--opt", *args.opt]
-    return command_line("openral_mjx.eval", argv)
-
-
-def run(args: EvalArgs) -> int:
-    if args.list:
-        print(_listing())
-        return 0
-    SCENES.get(args.scene)
-    POLICIES.get(args.policy.partition(":")[0])
-    if args.processes != 1 and processes.rank() is None:
-        _check_processes(args)
-        return processes.launch("openral_mjx.eval", sys.argv[1:], args.processes)
-    processes.initialize()
-    backend = resolve_scene_backend(args.scene, args.backend)
-    options = _scene_options(args)
-    stamp = dt.datetime.now().strftime("%Y%m%d-%H%M%S")
-    policy_tag = re.sub(r"[^A-Za-z0-9_.-]+", "-", args.policy).strip("-")  # mlp:a/b: mlp-a-b
-    out = args.out or Path("results") / f"{args.scene}_{policy_tag}_{stamp}.json"
-    if out.exists() and out.is_dir():
-        raise ConfigError(f"--out {str(out)!r} is a directory; give a file path")
-    baseline = None
-    if args.compare_with is not None:
-        baseline = load_report(args.compare_with)
-        if baseline.scene != args.scene:
-            raise ConfigError(
-                f"reports are not comparable: scene {baseline.scene!r} ({args.compare_with}) "
-                f"vs {args.scene!r}"
-            )
-    if min(args.video, args.video_failures) < 0:
-        raise ConfigError(
-            f"--video and --video-failures must be >= 0, got {args.video}, {args.video_failures}"
-        )
-    want_video = args.video > 0 or args.video_failures > 0
-    if want_video or args.plots:
-        require_viz()
-    if (want_video or args.frames) and backend == "host":
-        raise ConfigError(
-            f"--video and --frames re-simulate episodes in MuJoCo; scene {args.scene!r} runs in "
-            "host workers: drop --video/--video-failures/--frames (--plots works)"
-        )
-    if args.suite is not None:
-        _check_suite(args, want_video)
-    command = _reproduce(args, backend, out)
-    with contextlib.ExitStack() as owned:  # worker processes and policy servers end with the run
-        evaluation, camera, gl, no_gl = None, "", "", None
-        if args.suite is None:
-            scene = build_scene(
-                args.scene,
-                options,
-                backend=backend,
-                n_envs=args.n_envs,
-                threads=args.threads,
-                contacts_per_env=args.contacts_per_env,
-                devices=args.devices,
-            )
-            owned.callback(scene.close)
-            check_frames(scene, args.frames)
-            n_gpus = sum(d.platform == "gpu" for d in scene.backend.devices())
-            if backend == "warp" and n_gpus > 1 and processes.rank() is None:
-                stderr.print(
-                    f"note: one process drives {n_gpus} GPUs on warp at ~1.5x one GPU; "
-                    f"--processes {n_gpus} runs one process per GPU (~1.8-1.9x)"
-                )
-            if want_video:
-                camera, gl, no_gl = _video_setup(args, scene)
-        if args.compile_cache:
-            enable_compilation_cache()
-
-        with Progress(
-            TextColumn("{task.description}"),
-            BarColumn(),
-            MofNCompleteColumn(),
-            TimeElapsedColumn(),
-            console=stderr,
-            transient=True,
-            disable=not processes.is_primary(),
-        ) as progress:
-            task = progress.add_task(f"compiling {args.scene} on {backend}", total=None)
-
-            def on_chunk(done: int, total: int) -> None:
-                progress.update(task, description="episodes", completed=done, total=total)
-
-            if args.suite is not None:
-                report = _run_suite(args, options, command, progress, task)
-            else:
-                evaluation = run_evaluation(
-                    scene,
-                    args.policy,
-                    n_envs=args.n_envs,
-                    n_episodes=args.n_episodes,
-                    target_halfwidth=args.target_halfwidth,
-                    max_episodes=args.max_episodes,
-                    factor_bins=args.factor_bins,
-                    seed=args.seed,
-                    max_steps=args.max_steps,
-                    backend=backend,
-                    command=command,
-                    on_chunk=on_chunk,
-                    step_rewards=args.plots,
-                )
-                owned.enter_context(evaluation)
-                report = evaluation.report
-        stem = out.with_suffix("")
-        frames_file = out.with_name(f"{stem.name}.frames.npz")
-        if args.frames and evaluation is not None:
-            with stderr.status(f"re-simulating {min(args.frames, report.n_episodes)} episode(s)"):
-                arrays = record_frames(evaluation, args.frames, frames_file.name)
-            save_frames(frames_file, arrays)
-        if not processes.is_primary():
-            processes.finish()
-            return 0  # process 0 of the job writes and prints
-        save_report(report, out)
-        _print_results(args, report, baseline, out, frames_file if args.frames else None)
-        if args.plots and evaluation is not None:
-            for path in write_plots(report, stem, evaluation.arrays["rewards"]):
-                print(f"plot: {path}")
-        if want_video and evaluation is not None:
-            if no_gl is not None:
-                raise GLUnavailable(f"cannot render videos: {no_gl}")
-            write_videos(evaluation, args, stem.with_name(f"{stem.name}_videos"), camera, gl)
-    processes.finish()
-    return 0
 
 
 def _check_processes(args: EvalArgs) -> None:
@@ -323,20 +260,229 @@ def _check_processes(args: EvalArgs) -> None:
         raise ConfigError(f"--processes {args.processes} does not combine with {', '.join(extras)}")
 
 
-def _video_setup(args: EvalArgs, scene) -> tuple[str, str, GLUnavailable | None]:
-    """The videos' camera and GL backend, checked before anything runs (no GL is reported
-    after the run, which still writes its report)."""
-    camera = args.video_camera or default_camera(scene)
-    camera_id(scene.mj_model, camera)
-    try:
-        return camera, gl_backend(), None
-    except GLUnavailable as e:
-        return camera, "", e
+def _check_suite(args: EvalArgs, want_video: bool) -> None:
+    """`--suite` runs every task of the suite with a fixed episode count and no videos, plots
+    or frames."""
+    if args.task is not None or args.target_halfwidth is not None:
+        raise ConfigError("--suite runs every task of the suite: drop --task/--target-halfwidth")
+    if want_video or args.plots or args.frames:
+        raise ConfigError("--suite writes one report over its tasks: drop --video/--plots/--frames")
+    scene_suite(args.scene, args.suite)
 
 
-def _print_results(
-    args: EvalArgs, report: EvalReport, baseline, out: Path, frames_file: Path | None
-) -> None:
+def _reproduce(args: EvalArgs, backend: str, out: Path) -> str:
+    """The command line that reproduces this run (the report's `command`)."""
+    argv = ["--scene", args.scene, "--policy", args.policy, "--backend", backend]
+    argv += ["--n-envs", str(args.n_envs), "--seed", str(args.seed), "--out", str(out)]
+    for flag, value in (
+        ("--task", args.task),
+        ("--suite", args.suite),
+        ("--n-episodes", args.n_episodes),
+        ("--target-halfwidth", args.target_halfwidth),
+        ("--max-episodes", args.max_episodes),
+        ("--max-steps", args.max_steps),
+        ("--robot", args.robot),
+        ("--robot-mjcf", args.robot_mjcf),
+        ("--config", args.config),
+        ("--threads", args.threads),
+        ("--contacts-per-env", args.contacts_per_env),
+        ("--devices", args.devices),
+        ("--processes", args.processes if args.processes != 1 else None),
+        ("--factor-bins", args.factor_bins if args.factor_bins != 5 else None),
+        ("--frames", args.frames or None),
+    ):
+        if value is not None:
+            argv += [flag, str(value)]
+    if args.opt:
+        argv += ["--opt", *args.opt]
+    return command_line("openral_mjx.eval", argv)
+
+
+# ---- build -----------------------------------------------------------------------------------
+
+
+@dataclasses.dataclass
+class Built:
+    """What `build` made for the run: the scene (None for a suite, which builds one per task)
+    and, for videos, the camera and the GL backend (or why there is none: the run still goes
+    ahead and writes its report, and the missing renderer is reported at the end)."""
+
+    scene: Scene | None = None
+    camera: str = ""
+    gl: str = ""
+    no_gl: GLUnavailable | None = None
+
+
+def build(plan: EvalPlan, owned: contextlib.ExitStack) -> Built:
+    """Build the scene (its workers end with `owned`) and check what needs its model."""
+    args = plan.args
+    if args.compile_cache:
+        enable_compilation_cache()
+    if args.suite is not None:
+        return Built()
+    scene = build_scene(
+        args.scene,
+        plan.options,
+        backend=plan.backend,
+        n_envs=args.n_envs,
+        threads=args.threads,
+        contacts_per_env=args.contacts_per_env,
+        devices=args.devices,
+    )
+    owned.callback(scene.close)
+    check_frames(scene, args.frames)
+    n_gpus = sum(d.platform == "gpu" for d in scene.backend.devices())
+    if plan.backend == "warp" and n_gpus > 1 and processes.rank() is None:
+        stderr.print(
+            f"note: one process drives {n_gpus} GPUs on warp at ~1.5x one GPU; "
+            f"--processes {n_gpus} runs one process per GPU (~1.8-1.9x)"
+        )
+    built = Built(scene)
+    if plan.want_video:
+        built.camera = args.video_camera or default_camera(scene)
+        camera_id(scene.mj_model, built.camera)
+        try:
+            built.gl = gl_backend()
+        except GLUnavailable as e:
+            built.no_gl = e
+    return built
+
+
+# ---- execute ---------------------------------------------------------------------------------
+
+
+def execute(plan: EvalPlan, built: Built, owned: contextlib.ExitStack) -> Evaluation | EvalReport:
+    """Run the evaluation (a suite: every task in turn) under a progress bar; an `Evaluation`
+    keeps its scene and arrays for what `write` re-simulates."""
+    args = plan.args
+    with Progress(
+        TextColumn("{task.description}"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TimeElapsedColumn(),
+        console=stderr,
+        transient=True,
+        disable=not processes.is_primary(),
+    ) as progress:
+        bar = progress.add_task(f"compiling {args.scene} on {plan.backend}", total=None)
+
+        def on_chunk(done: int, total: int) -> None:
+            progress.update(bar, description="episodes", completed=done, total=total)
+
+        if args.suite is not None:
+
+            def on_task(i: int, n: int, name: str) -> None:
+                progress.update(
+                    bar, description=f"task {i + 1}/{n} {name}", completed=0, total=None
+                )
+
+            return evaluate_suite(
+                args.scene,
+                args.suite,
+                args.policy,
+                n_envs=args.n_envs,
+                n_episodes=args.n_episodes,
+                seed=args.seed,
+                max_steps=args.max_steps,
+                options=plan.options,
+                command=plan.command,
+                on_task=on_task,
+                on_chunk=lambda done, total: progress.update(bar, completed=done, total=total),
+            )
+        assert built.scene is not None
+        evaluation = run_evaluation(
+            built.scene,
+            args.policy,
+            n_envs=args.n_envs,
+            n_episodes=args.n_episodes,
+            target_halfwidth=args.target_halfwidth,
+            max_episodes=args.max_episodes,
+            factor_bins=args.factor_bins,
+            seed=args.seed,
+            max_steps=args.max_steps,
+            backend=plan.backend,
+            command=plan.command,
+            on_chunk=on_chunk,
+            step_rewards=args.plots,
+        )
+    owned.enter_context(evaluation)
+    return evaluation
+
+
+# ---- write -----------------------------------------------------------------------------------
+
+
+@dataclasses.dataclass
+class Written:
+    """What `write` put on disk, for `show`: the report, the frames file, plots and videos (with
+    the traces they show), notes for the user, and why videos could not be rendered."""
+
+    report: EvalReport
+    frames_file: Path | None = None
+    plots: list[Path] = dataclasses.field(default_factory=list)
+    videos: list[tuple[Path, EpisodeTrace]] = dataclasses.field(default_factory=list)
+    notes: list[str] = dataclasses.field(default_factory=list)
+    no_gl: GLUnavailable | None = None
+
+
+def write(plan: EvalPlan, built: Built, result: Evaluation | EvalReport) -> Written | None:
+    """Write the report (atomically), then frames, plots and videos beside it. Only process 0
+    of a job writes (the others return None)."""
+    args = plan.args
+    evaluation = result if isinstance(result, Evaluation) else None
+    report = result.report if isinstance(result, Evaluation) else result
+    if not processes.is_primary():
+        return None
+    written = Written(report)
+    if evaluation is not None and plan.frames_file is not None:  # the report names the frames
+        with stderr.status(f"re-simulating {min(args.frames, report.n_episodes)} episode(s)"):
+            arrays = record_frames(evaluation, args.frames, plan.frames_file.name)
+        save_frames(plan.frames_file, arrays)
+        written.frames_file = plan.frames_file
+    save_report(report, plan.out)
+    if evaluation is None:
+        return written
+    if args.plots:
+        written.plots = write_plots(report, plan.stem, evaluation.arrays["rewards"])
+    if plan.want_video:
+        if built.no_gl is not None:
+            written.no_gl = built.no_gl
+        else:
+            written.videos, notes = write_videos(evaluation, args, plan.videos_dir, built)
+            written.notes += notes
+    return written
+
+
+def write_videos(
+    evaluation: Evaluation, args: EvalArgs, folder: Path, built: Built
+) -> tuple[list[tuple[Path, EpisodeTrace]], list[str]]:
+    """Re-simulate the chosen episodes and write one MP4 each into `folder`; the videos with
+    their traces, and notes (fewer failures to film than asked)."""
+    seeds = choose_seeds(evaluation, args.video, args.video_failures)
+    failed = int((~evaluation.arrays["success"]).sum())
+    notes = []
+    if failed < args.video_failures:
+        notes.append(f"{failed} failed episode(s) to film, not {args.video_failures}")
+    with stderr.status(f"re-simulating {len(seeds)} episode(s) for videos"):
+        traces = trace_episodes(evaluation, seeds)
+    videos = []
+    for trace in traces:
+        path = folder / f"seed{trace.seed}_{trace.outcome}.mp4"
+        with stderr.status(f"rendering {path.name}"):
+            write_episode_video(
+                path, evaluation.scene, args.policy, trace, camera=built.camera, gl=built.gl
+            )
+        videos.append((path, trace))
+    return videos, notes
+
+
+# ---- show ------------------------------------------------------------------------------------
+
+
+def show(plan: EvalPlan, written: Written) -> None:
+    """Print the summary, the breakdown and comparison, and where each file went; a renderer
+    that was missing for videos is raised last (exit code 2, after everything else is out)."""
+    args, report = plan.args, written.report
     print(report.summary())
     if args.suite is not None:
         print(format_tasks(report))
@@ -350,64 +496,22 @@ def _print_results(
         print(sequential_summary(report))
     if args.breakdown and report.breakdown:
         print(format_breakdown(report.breakdown, report.confidence))
-    if baseline is not None:
-        rc = compare_reports(baseline, report)
-        print(format_comparison(rc, baseline, report, (str(args.compare_with), str(out))))
-    if frames_file is not None:
-        print(f"frames: {frames_file}")
-    print(f"report: {out}")
-
-
-def _check_suite(args: EvalArgs, want_video: bool) -> None:
-    """`--suite` runs every task of the suite with a fixed episode count and no videos, plots
-    or frames."""
-    if args.task is not None or args.target_halfwidth is not None:
-        raise ConfigError("--suite runs every task of the suite: drop --task/--target-halfwidth")
-    if want_video or args.plots or args.frames:
-        raise ConfigError("--suite writes one report over its tasks: drop --video/--plots/--frames")
-    scene_suite(args.scene, args.suite)  # validate before starting anything
-
-
-def _run_suite(args: EvalArgs, options: dict, command: str, progress: Progress, task) -> EvalReport:
-    """Every task of `--suite`, one after another, into one report."""
-
-    def on_task(i: int, n: int, name: str) -> None:
-        progress.update(task, description=f"task {i + 1}/{n} {name}", completed=0, total=None)
-
-    def on_chunk(done: int, total: int) -> None:
-        progress.update(task, completed=done, total=total)
-
-    return evaluate_suite(
-        args.scene,
-        args.suite,
-        args.policy,
-        n_envs=args.n_envs,
-        n_episodes=args.n_episodes,
-        seed=args.seed,
-        max_steps=args.max_steps,
-        options=options,
-        command=command,
-        on_task=on_task,
-        on_chunk=on_chunk,
-    )
-
-
-def write_videos(
-    evaluation: Evaluation, args: EvalArgs, folder: Path, camera: str, gl: str
-) -> None:
-    """Re-simulate the chosen episodes and write one MP4 each into `folder`."""
-    seeds = choose_seeds(evaluation, args.video, args.video_failures)
-    failed = int((~evaluation.arrays["success"]).sum())
-    if failed < args.video_failures:
-        print(f"note: {failed} failed episode(s) to film, not {args.video_failures}")
-    with stderr.status(f"re-simulating {len(seeds)} episode(s) for videos"):
-        traces = trace_episodes(evaluation, seeds)
-    for trace in traces:
-        path = folder / f"seed{trace.seed}_{trace.outcome}.mp4"
-        with stderr.status(f"rendering {path.name}"):
-            write_episode_video(path, evaluation.scene, args.policy, trace, camera=camera, gl=gl)
-        note = "" if trace.reproduced else "; re-simulation DIFFERS from the evaluated episode"
-        print(f"video: {path} ({trace.outcome} at step {trace.steps}{note})")
+    if plan.baseline is not None:
+        rc = compare_reports(plan.baseline, report)
+        names = (str(args.compare_with), str(plan.out))
+        print(format_comparison(rc, plan.baseline, report, names))
+    if written.frames_file is not None:
+        print(f"frames: {written.frames_file}")
+    print(f"report: {plan.out}")
+    for path in written.plots:
+        print(f"plot: {path}")
+    for note in written.notes:
+        print(f"note: {note}")
+    for path, trace in written.videos:
+        differs = "" if trace.reproduced else "; re-simulation DIFFERS from the evaluated episode"
+        print(f"video: {path} ({trace.outcome} at step {trace.steps}{differs})")
+    if written.no_gl is not None:
+        raise GLUnavailable(f"cannot render videos: {written.no_gl}")
 
 
 def sequential_summary(report: EvalReport) -> str:
@@ -424,6 +528,42 @@ def sequential_summary(report: EvalReport) -> str:
         f"sequential: stopped after {s.looks} chunk(s) of {s.chunk:,}, {report.n_episodes:,} "
         f"of at most {s.max_episodes:,} episodes; {why}; interval exact under this stopping rule"
     )
+
+
+def _listing() -> str:
+    return "\n".join(
+        [
+            f"scenes:   {', '.join(SCENES.names())}",
+            f"policies: {', '.join(POLICIES.names())}",
+            f"robots:   {', '.join(ROBOTS.names())}",
+            f"backends: {', '.join(BACKEND_NAMES)} (MuJoCo scenes), host (host scenes)",
+        ]
+    )
+
+
+# ---- the command -----------------------------------------------------------------------------
+
+
+def run(args: EvalArgs) -> int:
+    """validate -> build -> execute -> write -> show; with `--processes N`, validate here and
+    launch N processes that each run the pipeline."""
+    if args.list:
+        print(_listing())
+        return 0
+    launcher = args.processes != 1 and processes.rank() is None
+    if not launcher:
+        processes.initialize()  # before anything touches a device
+    plan = validate(args)
+    if launcher:
+        return processes.launch("openral_mjx.eval", sys.argv[1:], args.processes)
+    with contextlib.ExitStack() as owned:  # worker processes and policy servers end with the run
+        built = build(plan, owned)
+        result = execute(plan, built, owned)
+        written = write(plan, built, result)
+        if written is not None:
+            show(plan, written)
+    processes.finish()
+    return 0
 
 
 def main() -> None:

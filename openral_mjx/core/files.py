@@ -48,9 +48,11 @@ def write_json_atomic(path: Path, data: Any) -> None:
 
 
 def check_writable(path: Path, what: str = "--out") -> None:
-    """Raise `ConfigError` unless a file can be written at `path` (its directory may not exist
-    yet: then the nearest existing ancestor must be a writable directory). Checked before a
-    long run, so that its results are not lost to a bad path afterwards."""
+    """Raise `ConfigError` unless a file can be written at `path`, checked before a long run so
+    that its results are not lost to a bad path afterwards. The directory may not exist yet
+    (it is made when the file is written); then its nearest existing ancestor must take a file.
+    Probed by creating and deleting a temporary file there: permission bits alone do not tell
+    (root, read-only mounts)."""
     if path.is_dir():
         raise ConfigError(f"{what} {str(path)!r} is a directory; give a file path")
     parent = path.absolute().parent
@@ -58,5 +60,10 @@ def check_writable(path: Path, what: str = "--out") -> None:
         parent = parent.parent
     if not parent.is_dir():
         raise ConfigError(f"{what} {str(path)!r}: {str(parent)!r} is not a directory")
-    if not os.access(parent, os.W_OK | os.X_OK):
-        raise ConfigError(f"{what} {str(path)!r}: directory {str(parent)!r} is not writable")
+    try:
+        with tempfile.TemporaryFile(dir=parent):
+            pass
+    except OSError as e:
+        raise ConfigError(
+            f"{what} {str(path)!r}: cannot write in {str(parent)!r} ({e.strerror})"
+        ) from None

@@ -1,0 +1,5 @@
+"""The host-callback adapter's machinery: simulators that cannot run in JAX live in worker
+processes (`pool`, `worker`, `codec`), batched behind one callback per step (`batch`,
+`gym_batch`), in worker environments of their own (`envs`); the env wrappers (`libero_env`,
+`robosuite_env`, `point_reach`) and the lerobot policy server run inside those workers.
+Modules here import nothing but this package's `core` and `host` (workers have no JAX)."""

@@ -34,7 +34,7 @@ from openral_mjx.physics import BACKEND_NAMES
 from openral_mjx.policies import POLICIES
 from openral_mjx.report import EvalReport, load_report, save_report
 from openral_mjx.robots import ROBOTS
-from openral_mjx.runner import processes
+from openral_mjx.runner import check_batching, processes
 from openral_mjx.runner.compile_cache import enable_compilation_cache
 from openral_mjx.scenes import (
     SCENES,
@@ -81,6 +81,11 @@ class EvalArgs:
     """Cap on a sequential run's episodes (default: enough for any success rate)."""
     max_steps: int | None = None
     """Control steps per episode (default: the scene's)."""
+    batching: str = "chunks"
+    """chunks: fixed batches of n_envs seeds, each run for max_steps; refill: continuous
+    batching, a slot whose episode ended takes the next seed (mjx and c; same episodes)."""
+    refill_every: int = 1
+    """--batching refill: reset ended slots every this many control steps (batched resets)."""
     seed: int = 0
     """First seed; episodes use seeds seed .. seed+n_episodes-1."""
     config: Path | None = None
@@ -186,6 +191,7 @@ def validate(args: EvalArgs) -> EvalPlan:
         )
     if args.frames < 0:
         raise ConfigError(f"frames must be >= 0, got {args.frames}")
+    check_batching(args.batching, backend, args.refill_every, traces=args.plots)
     want_video = args.video > 0 or args.video_failures > 0
     if want_video or args.plots:
         require_viz()
@@ -290,6 +296,8 @@ def _reproduce(args: EvalArgs, backend: str, out: Path) -> str:
         ("--processes", args.processes if args.processes != 1 else None),
         ("--factor-bins", args.factor_bins if args.factor_bins != 5 else None),
         ("--frames", args.frames or None),
+        ("--batching", args.batching if args.batching != "chunks" else None),
+        ("--refill-every", args.refill_every if args.refill_every != 1 else None),
     ):
         if value is not None:
             argv += [flag, str(value)]
@@ -404,6 +412,8 @@ def execute(plan: EvalPlan, built: Built, owned: contextlib.ExitStack) -> Evalua
             command=plan.command,
             on_chunk=on_chunk,
             step_rewards=args.plots,
+            batching=args.batching,
+            refill_every=args.refill_every,
         )
     owned.enter_context(evaluation)
     return evaluation

@@ -87,3 +87,51 @@ def test_each_step_alone(capsys, tmp_path):
     out = capsys.readouterr().out
     assert out.splitlines()[0] == written.report.summary()
     assert f"report: {tmp_path / 'r.json'}" in out
+
+
+@pytest.mark.parametrize(
+    "argv, needle",
+    [
+        (["--batching", "nope"], "unknown batching 'nope'; valid: chunks, refill"),
+        (["--batching", "refill", "--backend", "warp"], "backend 'warp' cannot"),
+        (["--batching", "refill", "--refill-every", "0"], "refill_every must be a positive"),
+    ],
+)
+def test_batching_mistakes_are_refused_before_anything_is_built(monkeypatch, argv, needle):
+    monkeypatch.setattr(eval_cli, "build_scene", _no_build)
+    with pytest.raises(ConfigError, match=needle):
+        eval_cli.validate(eval_cli.EvalArgs(**_flags(argv)))
+
+
+def _flags(argv: list[str]) -> dict:
+    pairs = zip(argv[::2], argv[1::2], strict=True)
+    kinds = {"refill_every": int}
+    return {k[2:].replace("-", "_"): kinds.get(k[2:].replace("-", "_"), str)(v) for k, v in pairs}
+
+
+def test_sequential_run_with_refill_matches_chunks(monkeypatch, capsys, tmp_path):
+    """A sequential run stops at the same look with either batching, with the same episodes
+    (c backend: bit for bit) and the same exact interval; the report says how it batched."""
+    reports = {}
+    for batching in ("chunks", "refill"):
+        out = tmp_path / f"{batching}.json"
+        argv = ["openral_mjx.eval", "--n-envs", "4", "--max-steps", "40", "--threads", "1"]
+        argv += ["--target-halfwidth", "0.3", "--no-breakdown", "--out", str(out)]
+        argv += ["--batching", batching, "--seed", "3"]
+        monkeypatch.setattr(sys, "argv", argv)
+        with pytest.raises(SystemExit) as exc:
+            eval_cli.main()
+        assert exc.value.code == 0, capsys.readouterr().err
+        reports[batching] = load_report(out)
+    a, b = reports["chunks"], reports["refill"]
+    assert b.options["batching"] == "refill every 1" and a.options["batching"] == "chunks"
+    assert (a.n_episodes, a.successes, a.ci_low, a.ci_high) == (
+        b.n_episodes,
+        b.successes,
+        b.ci_low,
+        b.ci_high,
+    )
+    assert a.sequential.looks == b.sequential.looks
+    assert [e.success for e in a.episodes] == [e.success for e in b.episodes]
+    assert [e.total_reward for e in a.episodes] == [e.total_reward for e in b.episodes]
+    assert "--batching refill" in b.command

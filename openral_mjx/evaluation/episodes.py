@@ -35,8 +35,9 @@ def episode_results(
     `info/...` values into metadata entries (the scene's `describe_episode`).
     """
     budget_ms = 1000 * control_dt
-    chunk_ms = [round(1000 * s / timing.scan_steps, 4) for s in timing.chunk_s]
-    max_ms = max(chunk_ms)
+    step_ms = timing.step_ms()
+    per_chunk = timing.batch_steps is None
+    max_ms = max(step_ms)
     factors = {
         k.removeprefix(FACTOR_PREFIX): float32_values(v)
         for k, v in arrays.items()
@@ -62,7 +63,7 @@ def episode_results(
             mean_ms = round(lat_sum[i] / max(steps[i], 1), 4)
             ep_max_ms, violations = round(lat_max[i], 4), lat_over[i]
         else:
-            mean_ms = chunk_ms[i // timing.n_envs]
+            mean_ms = step_ms[i // timing.n_envs if per_chunk else 0]
             ep_max_ms, violations = max_ms, steps[i] if mean_ms > budget_ms else 0
         extra = {} if not info else (describe or dict)({k: v[i] for k, v in info.items()})
         results.append(

@@ -82,6 +82,8 @@ def trace_episodes(evaluation: Evaluation, seeds: Sequence[int]) -> list[Episode
         chunks = seed_chunks(ev.seeds, ev.timing.n_envs)
         batch_of = lambda s: chunks[index[s] // ev.timing.n_envs]  # noqa: E731
         how = f"re-simulated on {backend.name} in its evaluation batch of {ev.timing.n_envs}"
+        if ev.timing.batch_steps is not None:  # continuous batching: no fixed batch to re-run
+            how = f"re-simulated on {backend.name} in a batch of {ev.timing.n_envs} seeds"
     arrays, trace = trace_seeds(
         ev.scene,
         ev.policy,

@@ -19,7 +19,7 @@ from openral_mjx.evaluation.sequential import SequentialRule, sequential_rule
 from openral_mjx.physics import PhysicsSettings
 from openral_mjx.policies import Policy, make_policy
 from openral_mjx.report import EvalReport, SequentialInfo, TaskRow
-from openral_mjx.runner import RunTiming, check_counts, run_seeds
+from openral_mjx.runner import RunTiming, check_batching, check_counts, run_seeds
 from openral_mjx.scenes import Scene, make_scene
 from openral_mjx.stats.breakdown import breakdown
 from openral_mjx.stats.intervals import wilson_interval
@@ -140,9 +140,14 @@ def run_evaluation(
     command: str = "",
     on_chunk: Callable[[int, int], None] | None = None,
     step_rewards: bool = False,
+    batching: str = "chunks",
+    refill_every: int = 1,
 ) -> Evaluation:
     """`evaluate`, returning the report with the scene, policy and per-seed arrays that made
-    it; `step_rewards` also keeps every step's reward (`arrays["rewards"]`, for plots)."""
+    it; `step_rewards` also keeps every step's reward (`arrays["rewards"]`, for plots).
+    `batching` is `chunks` (fixed batches of `n_envs` seeds) or `refill` (continuous batching:
+    a slot whose episode ended takes the next seed, resets batched every `refill_every`
+    control steps); per seed the episodes are the same."""
     rule = check_run(
         n_envs, n_episodes, target_halfwidth, max_episodes, max_steps, seed, factor_bins
     )
@@ -169,6 +174,7 @@ def run_evaluation(
         else:
             pol, policy = policy, policy.name
         steps = scene.max_steps if max_steps is None else max_steps
+        check_batching(batching, scene.backend.name, refill_every, step_rewards)
         requested = np.arange(seed, seed + n_episodes, dtype=np.int64)
         params, _ = pol.init(jax.random.PRNGKey(seed), scene.observation_spec)
         arrays, timing = run_seeds(
@@ -181,6 +187,8 @@ def run_evaluation(
             on_chunk=on_chunk,
             until=rule,
             record=("rewards",) if step_rewards else (),
+            batching=batching,
+            refill_every=refill_every,
         )
         n_episodes = len(arrays["success"])
         seeds = requested[:n_episodes]
@@ -219,7 +227,6 @@ def run_evaluation(
         )
     names = episodes[0].metadata["factors"] if episodes else {}
     factors = {k: [e.metadata["factors"][k] for e in episodes] for k in names}
-    simulated = len(timing.chunk_s) * timing.n_envs * timing.scan_steps
     report = EvalReport(
         scene=scene.name,
         task=scene.task,
@@ -240,12 +247,16 @@ def run_evaluation(
         diverged=int(arrays["diverged"].sum()),
         per_task=[TaskRow(scene.task, n_episodes, successes, successes / n_episodes, low, high)],
         breakdown=breakdown(factors, arrays["success"], factor_bins),
-        env_steps_per_s=simulated / timing.run_s,
+        env_steps_per_s=timing.env_steps / timing.run_s,
         episodes_per_s=n_episodes / timing.run_s,
         compile_s=timing.compile_s,
         run_s=timing.run_s,
         control_dt_s=scene.control_dt,
-        options={**to_dict(scene.options), "backend": scene.backend.describe()},
+        options={
+            **to_dict(scene.options),
+            "backend": scene.backend.describe(),
+            "batching": batching if batching == "chunks" else f"refill every {refill_every}",
+        },
         versions=package_versions(),
         command=command,
         created_at=dt.datetime.now(dt.UTC).isoformat(timespec="seconds"),

@@ -1,12 +1,13 @@
-"""The batched episode runner: `vmap` over envs, one `lax.scan` over control steps, one `jit`.
+"""The batched episode runner: `vmap` over envs, a loop over control steps, one `jit`.
 
 `episode` is the pure-JAX episode of a batch of seeds; `chunks` runs any number of seeds
-through it in fixed-size batches (`EpisodeRunner`, `run_seeds`); `factors` computes each seed's
-episode factors; `trace` re-runs chosen seeds step by step. Below them: `device_layout` (one
-program per device over a 1-D env mesh), `memory` (fit the batch into device memory),
-`export_cache` and `compile_cache` (warm starts), and `processes` (several processes as one
-`jax.distributed` job). The runner knows no particular scene: it uses the `Scene` and `Policy`
-contracts only.
+through it in fixed-size batches (`EpisodeRunner`); `refill` runs them with continuous batching
+(`RefillRunner`: a slot whose episode ended takes the next seed); `seeds.run_seeds` picks
+either; `factors` computes each seed's episode factors; `trace` re-runs chosen seeds step by
+step. Below them: `device_layout` (one program per device over a 1-D env mesh), `memory` (fit
+the batch into device memory), `export_cache` and `compile_cache` (warm starts), and
+`processes` (several processes as one `jax.distributed` job). The runner knows no particular
+scene: it uses the `Scene` and `Policy` contracts only.
 """
 
 from openral_mjx.runner.chunks import (
@@ -16,7 +17,6 @@ from openral_mjx.runner.chunks import (
     RunTiming,
     check_counts,
     outcome_arrays,
-    run_seeds,
     seed_chunks,
 )
 from openral_mjx.runner.episode import (
@@ -27,18 +27,25 @@ from openral_mjx.runner.episode import (
     seed_keys,
 )
 from openral_mjx.runner.factors import make_factor_fn
+from openral_mjx.runner.refill import BATCHING, RefillRunner, check_batching, finished_prefix
+from openral_mjx.runner.seeds import make_runner, run_seeds
 from openral_mjx.runner.trace import trace_seeds
 
 __all__ = [
+    "BATCHING",
     "FACTOR_PREFIX",
     "INFO_PREFIX",
     "TRACES",
     "EpisodeArrays",
     "EpisodeRunner",
+    "RefillRunner",
     "RunTiming",
+    "check_batching",
     "check_counts",
+    "finished_prefix",
     "make_episode_fn",
     "make_factor_fn",
+    "make_runner",
     "make_trace_fn",
     "outcome_arrays",
     "run_seeds",

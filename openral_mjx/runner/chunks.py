@@ -46,7 +46,9 @@ class RunTiming:
 
     `n_envs` is the batch that ran (the request rounded up to a multiple of the devices, or
     shrunk to fit device memory); `bytes_per_device` is XLA's estimate of the compiled
-    episode's peak memory on one device (None where the backend cannot say).
+    episode's peak memory on one device (None where the backend cannot say). A run in chunks
+    took `scan_steps` control steps per chunk (`chunk_s` each); a continuously batched run
+    (`refill`) took `batch_steps` control steps in all, timed in segments (`chunk_s`).
     """
 
     compile_s: float
@@ -56,6 +58,23 @@ class RunTiming:
     n_envs: int
     n_devices: int = 1
     bytes_per_device: int | None = None
+    batch_steps: int | None = None
+
+    @property
+    def env_steps(self) -> int:
+        """Env-steps the batch simulated, padding and finished envs included: the machine's
+        work, not the episodes' length."""
+        steps = (
+            len(self.chunk_s) * self.scan_steps if self.batch_steps is None else self.batch_steps
+        )
+        return steps * self.n_envs
+
+    def step_ms(self) -> list[float]:
+        """Mean wall time of one batched control step (ms, 4 decimals): per chunk (episode i
+        ran in chunk i // n_envs), or one value for a continuously batched run."""
+        if self.batch_steps is not None:
+            return [round(1000 * self.run_s / max(self.batch_steps, 1), 4)]
+        return [round(1000 * s / self.scan_steps, 4) for s in self.chunk_s]
 
 
 def check_counts(n_envs: int, n_episodes: int, max_steps: int) -> None:
@@ -263,31 +282,3 @@ class EpisodeRunner:
             bytes_per_device=self._need,
         )
         return merged, timing
-
-
-def run_seeds(
-    scene: Scene,
-    policy: Policy,
-    params: Any,
-    *,
-    seeds: np.ndarray,
-    n_envs: int,
-    max_steps: int,
-    on_chunk: Callable[[int, int], None] | None = None,
-    record: tuple[str, ...] = (),
-    memory_fraction: float = 0.85,
-    devices: Sequence[jax.Device] | None = None,
-    until: Callable[[dict[str, Any]], bool] | None = None,
-) -> tuple[dict[str, Any], RunTiming]:
-    """Roll out every seed once, in chunks of `min(n_envs, len(seeds))` (see `EpisodeRunner`)."""
-    check_counts(n_envs, len(seeds), max_steps)
-    runner = EpisodeRunner(
-        scene,
-        policy,
-        n_envs=min(n_envs, len(seeds)),
-        max_steps=max_steps,
-        record=record,
-        memory_fraction=memory_fraction,
-        devices=devices,
-    )
-    return runner.run(params, seeds, on_chunk, until)

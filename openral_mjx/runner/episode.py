@@ -55,6 +55,82 @@ TRACES = ("obs", "actions", "rewards")
 StepRecord = Callable[[State, State, jax.Array, jax.Array], Any]
 
 
+def policy_state0(policy: Policy, obs: Any, n: int) -> Any:
+    """The policy's initial state for a batch of `n` envs with observations `obs`."""
+    obs_spec = jax.tree.map(lambda x: jax.ShapeDtypeStruct(x.shape[1:], x.dtype), obs)
+    _, pstate0 = policy.init(jax.random.PRNGKey(0), obs_spec)
+    return jax.tree.map(lambda x: jnp.broadcast_to(x, (n, *jnp.shape(x))), pstate0)
+
+
+def start_arrays(state: State) -> EpisodeArrays:
+    """A batch's episode accumulators at its reset `state` (an episode may end at reset)."""
+    n = state.done.shape[0]
+    zero = jnp.zeros(n, jnp.float32)
+    return EpisodeArrays(
+        success=state.metrics["success"],
+        steps=jnp.zeros(n, jnp.int32),
+        first_success_step=jnp.where(state.metrics["success"], 0, -1).astype(jnp.int32),
+        total_reward=zero,
+        diverged=state.metrics["diverged"],
+        latency_sum_ms=zero,
+        latency_max_ms=zero,
+        latency_violations=jnp.zeros(n, jnp.int32),
+        info={},
+    )
+
+
+def control_step(
+    scene: Scene,
+    policy: Policy,
+    params: Any,
+    state: State,
+    pstate: Any,
+    policy_keys: jax.Array,
+    t: jax.Array,
+) -> tuple[State, Any, jax.Array]:
+    """One control step of a batch: each env's action from its key stream at its episode step
+    `t` (a scalar, or one per env), then the scene's step. Returns (state, policy state,
+    action)."""
+    t = jnp.broadcast_to(t, policy_keys.shape[:1])
+    step_keys = jax.vmap(jax.random.fold_in)(policy_keys, t)
+    action, new_pstate = jax.vmap(policy.act, in_axes=(None, 0, 0, 0))(
+        params, pstate, state.obs, step_keys
+    )
+    return jax.vmap(scene.step)(state, action), new_pstate, action
+
+
+def accumulate(
+    acc: EpisodeArrays,
+    new_state: State,
+    new_pstate: Any,
+    live: jax.Array,
+    t: jax.Array,
+    policy: Policy,
+    budget_ms: float,
+) -> EpisodeArrays:
+    """The accumulators after the step from episode step `t` to `t + 1`; envs not `live` (their
+    episode had already ended) add nothing. A policy with `latency_ms` has its per-step latency
+    accumulated over the live steps against the control period `budget_ms`."""
+    success = new_state.metrics["success"] & live
+    diverged = new_state.metrics["diverged"] & live
+    latency = jnp.zeros_like(acc.latency_sum_ms)
+    if policy.latency_ms is not None:
+        latency = jnp.where(live, jax.vmap(policy.latency_ms)(new_pstate), 0.0)
+    return EpisodeArrays(
+        success=acc.success | success,
+        steps=acc.steps + live.astype(jnp.int32),
+        first_success_step=jnp.where(
+            success & (acc.first_success_step < 0), t + 1, acc.first_success_step
+        ),
+        total_reward=acc.total_reward + jnp.where(live, new_state.reward, 0.0),
+        diverged=acc.diverged | diverged,
+        latency_sum_ms=acc.latency_sum_ms + latency,
+        latency_max_ms=jnp.maximum(acc.latency_max_ms, latency),
+        latency_violations=acc.latency_violations + (latency > budget_ms),
+        info={},
+    )
+
+
 def _episode_scan(
     scene: Scene,
     policy: Policy,
@@ -68,55 +144,20 @@ def _episode_scan(
     Returns the episode outcomes, the reset state and, per step, `record(state, new_state,
     action, live)` of the batch (the states before and after the step, stacked on a leading
     step axis; None without `record`). `live` is False for envs whose episode had already ended
-    before the step. A policy with `latency_ms` has its per-step latency accumulated over each
-    episode's live steps against the control period.
+    before the step.
     """
     reset_keys, policy_keys = seed_keys(seeds)
     state = jax.vmap(scene.reset_with_seed)(seeds, reset_keys)
-    obs_spec = jax.tree.map(lambda x: jax.ShapeDtypeStruct(x.shape[1:], x.dtype), state.obs)
-    _, pstate0 = policy.init(jax.random.PRNGKey(0), obs_spec)
-    n = seeds.shape[0]
-    pstate = jax.tree.map(lambda x: jnp.broadcast_to(x, (n, *jnp.shape(x))), pstate0)
-    zero = jnp.zeros(n, jnp.float32)
+    pstate = policy_state0(policy, state.obs, seeds.shape[0])
     budget_ms = 1000.0 * scene.control_dt
-    acc = EpisodeArrays(
-        success=state.metrics["success"],
-        steps=jnp.zeros(n, jnp.int32),
-        first_success_step=jnp.where(state.metrics["success"], 0, -1).astype(jnp.int32),
-        total_reward=zero,
-        diverged=state.metrics["diverged"],
-        latency_sum_ms=zero,
-        latency_max_ms=zero,
-        latency_violations=jnp.zeros(n, jnp.int32),
-        info={},
-    )
 
     def body(carry, t):
         state, pstate, acc, done = carry
-        step_keys = jax.vmap(lambda k: jax.random.fold_in(k, t))(policy_keys)
-        action, new_pstate = jax.vmap(policy.act, in_axes=(None, 0, 0, 0))(
-            params, pstate, state.obs, step_keys
+        new_state, new_pstate, action = control_step(
+            scene, policy, params, state, pstate, policy_keys, t
         )
-        new_state = jax.vmap(scene.step)(state, action)
         live = ~done
-        success = new_state.metrics["success"] & live
-        diverged = new_state.metrics["diverged"] & live
-        latency = jnp.zeros_like(acc.latency_sum_ms)
-        if policy.latency_ms is not None:
-            latency = jnp.where(live, jax.vmap(policy.latency_ms)(new_pstate), 0.0)
-        acc = EpisodeArrays(
-            success=acc.success | success,
-            steps=acc.steps + live.astype(jnp.int32),
-            first_success_step=jnp.where(
-                success & (acc.first_success_step < 0), t + 1, acc.first_success_step
-            ),
-            total_reward=acc.total_reward + jnp.where(live, new_state.reward, 0.0),
-            diverged=acc.diverged | diverged,
-            latency_sum_ms=acc.latency_sum_ms + latency,
-            latency_max_ms=jnp.maximum(acc.latency_max_ms, latency),
-            latency_violations=acc.latency_violations + (latency > budget_ms),
-            info={},
-        )
+        acc = accumulate(acc, new_state, new_pstate, live, t, policy, budget_ms)
         # Finished envs keep simulating in lock-step with the batch, but nothing after their
         # end counts. Freezing them instead would copy the whole physics state every step
         # (~60-115 KB per env on MJX/Warp), which costs more than the physics it saves.
@@ -125,7 +166,9 @@ def _episode_scan(
         return (new_state, new_pstate, acc, new_done), out
 
     (last, _, acc, _), records = jax.lax.scan(
-        body, (state, pstate, acc, state.done), jnp.arange(max_steps, dtype=jnp.int32)
+        body,
+        (state, pstate, start_arrays(state), state.done),
+        jnp.arange(max_steps, dtype=jnp.int32),
     )
     return acc.replace(info=jax.vmap(scene.episode_info)(last)), state, records
 

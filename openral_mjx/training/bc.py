@@ -89,13 +89,12 @@ def collect_demos(
         keep &= arrays["success"][:, None]
     if not keep.any():
         raise ConfigError(f"the expert succeeded in none of {n_episodes} episodes: no demos")
-    simulated = len(timing.chunk_s) * timing.n_envs * timing.scan_steps
     return Demos(
         obs=arrays["obs"][keep].astype(np.float32),
         actions=arrays["actions"][keep].astype(np.float32),
         n_episodes=n_episodes,
         n_successful=int(arrays["success"].sum()),
-        env_steps_per_s=simulated / timing.run_s,
+        env_steps_per_s=timing.env_steps / timing.run_s,
     )
 
 

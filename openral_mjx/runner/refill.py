@@ -1,0 +1,367 @@
+"""Continuous batching: a slot whose episode has ended takes the next seed.
+
+`n_slots` envs run in one `lax.while_loop` over control steps. When a slot's episode ends
+(success, divergence or its step limit), its outcome goes to its seed's row at once, and every
+`refill_every` control steps the ended slots reset to the next unassigned seeds (one batched
+reset under `lax.cond`, skipped when no slot has ended). Slots with nothing left to do idle
+until the batch drains. Seed s's episode starts from `reset_with_seed(s, reset key of s)` with
+a fresh policy state and its own key stream from step 0: nothing carries over from the slot's
+earlier episode, so seed s gives the episode the fixed-chunk runner gives it (bit for bit
+where a backend's episodes do not depend on the batch: `c`, and warp on a CPU).
+
+The loop runs in segments of at most a given number of control steps, so the host can read
+between segments which seeds have finished. Statistics and stopping rules must use the
+finished *prefix* of the seeds only (`finished_prefix`): successes end episodes early, so the
+set of whatever has finished is biased towards success.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from flax import struct
+
+from openral_mjx.core.errors import ConfigError, unknown
+from openral_mjx.policies.base import Policy
+from openral_mjx.runner.chunks import (
+    FACTOR_PREFIX,
+    EpisodeRunner,
+    RunTiming,
+    check_counts,
+    outcome_arrays,
+    seed_chunks,
+)
+from openral_mjx.runner.device_layout import Program
+from openral_mjx.runner.episode import (
+    EpisodeArrays,
+    accumulate,
+    control_step,
+    policy_state0,
+    seed_keys,
+    start_arrays,
+)
+from openral_mjx.scenes.base import Scene, State
+
+BATCHING = ("chunks", "refill")
+
+
+def check_batching(
+    batching: str, backend: str, refill_every: int = 1, traces: bool = False
+) -> None:
+    """Reject a batching mode the run cannot use, before anything is built (`ConfigError`)."""
+    if batching not in BATCHING:
+        raise unknown("batching", batching, BATCHING)
+    if refill_every < 1:
+        raise ConfigError(f"refill_every must be a positive integer, got {refill_every}")
+    if batching == "refill" and backend not in ("mjx", "c"):
+        raise ConfigError(
+            f"batching 'refill' resets single envs in place, which backend {backend!r} cannot "
+            "(warp shares its contact buffer across the batch; host scenes keep their envs "
+            "in workers): use batching 'chunks', or backend mjx or c"
+        )
+    if batching == "refill" and traces:
+        raise ConfigError("per-step traces (reward curves for plots) need batching 'chunks'")
+
+
+@struct.dataclass
+class Slots:
+    """The envs of the batch, each running one seed's episode (leading axis: slot)."""
+
+    state: State
+    pstate: Any
+    acc: EpisodeArrays  # the running episode's accumulators (`info` empty)
+    keys: jax.Array  # the episode's policy key stream
+    t: jax.Array  # int32: control steps into the episode
+    seed_index: jax.Array  # int32: row of the slot's seed; `n_seeds` once idle
+    ended: jax.Array  # bool: the episode is over and its row written (idle slots too)
+
+
+@struct.dataclass
+class RefillCarry:
+    """Everything the loop carries between segments. Every leaf has a leading axis that
+    splits over devices: slots, seeds, or one entry per device (`next_seed`, `steps`)."""
+
+    slots: Slots
+    results: EpisodeArrays  # one row per seed (`info`: the scene's `episode_info` at its end)
+    finished: jax.Array  # bool per seed: its row is final
+    next_seed: jax.Array  # (1,) int32: the next unassigned seed row
+    steps: jax.Array  # (1,) int32: control steps the batch has taken
+
+
+def _where(mask: jax.Array, a: Any, b: Any) -> Any:
+    """Per slot (leading axis): `a` where `mask`, else `b`, leaf by leaf."""
+
+    def pick(x: jax.Array, y: jax.Array) -> jax.Array:
+        return jnp.where(mask.reshape(mask.shape + (1,) * (x.ndim - 1)), x, y)
+
+    return jax.tree.map(pick, a, b)
+
+
+def make_refill_fns(
+    scene: Scene, policy: Policy, max_steps: int, n_slots: int, refill_every: int = 1
+) -> tuple[Callable[[Any, jax.Array], RefillCarry], Callable[..., RefillCarry]]:
+    """`start(params, seeds[n]) -> carry` and `advance(params, carry, seeds[n], budget[1]) ->
+    carry` (jit both): `advance` runs control steps until every seed has finished or `budget`
+    more steps have run. `n_slots <= n` envs run at once."""
+
+    budget_ms = 1000.0 * scene.control_dt
+
+    def fresh(params: Any, seeds: jax.Array, rows: jax.Array) -> Slots:
+        del params
+        chosen = seeds[rows]
+        reset_keys, policy_keys = seed_keys(chosen)
+        state = jax.vmap(scene.reset_with_seed)(chosen, reset_keys)
+        return Slots(
+            state=state,
+            pstate=policy_state0(policy, state.obs, rows.shape[0]),
+            acc=start_arrays(state),
+            keys=policy_keys,
+            t=jnp.zeros(rows.shape, jnp.int32),
+            seed_index=rows.astype(jnp.int32),
+            ended=jnp.zeros(rows.shape, bool),
+        )
+
+    def write_out(carry: RefillCarry) -> RefillCarry:
+        """Write the rows of episodes that ended since the last write."""
+        s = carry.slots
+        n = carry.finished.shape[0]
+        over = ~s.ended & (s.state.done | (s.t >= max_steps))
+        rows = jnp.where(over, s.seed_index, n)  # row n: dropped
+        acc = s.acc.replace(info=jax.vmap(scene.episode_info)(s.state))
+        results = jax.tree.map(lambda r, a: r.at[rows].set(a, mode="drop"), carry.results, acc)
+        return carry.replace(
+            slots=s.replace(ended=s.ended | over),
+            results=results,
+            finished=carry.finished.at[rows].set(True, mode="drop"),
+        )
+
+    def refill(params: Any, carry: RefillCarry, seeds: jax.Array) -> RefillCarry:
+        """Ended slots take the next seeds in order; those past the last seed go idle."""
+        s, n = carry.slots, seeds.shape[0]
+        want = s.ended & (s.seed_index < n)
+        rows = carry.next_seed[0] + jnp.cumsum(want) - 1
+        take = want & (rows < n)
+        new = fresh(params, seeds, jnp.where(take, rows, 0))
+        slots = _where(take, new, s)
+        slots = slots.replace(
+            seed_index=jnp.where(want & ~take, n, slots.seed_index),
+        )
+        next_seed = jnp.minimum(carry.next_seed + jnp.sum(want), n)
+        return write_out(carry.replace(slots=slots, next_seed=next_seed))
+
+    def start(params: Any, seeds: jax.Array) -> RefillCarry:
+        n = seeds.shape[0]
+        slots = fresh(params, seeds, jnp.arange(n_slots))
+        info = jax.eval_shape(jax.vmap(scene.episode_info), slots.state)
+        results = jax.tree.map(
+            lambda x: jnp.zeros((n, *x.shape[1:]), x.dtype),
+            slots.acc.replace(info=info),
+        )
+        carry = RefillCarry(
+            slots=slots,
+            results=results,
+            finished=jnp.zeros(n, bool),
+            next_seed=jnp.full((1,), n_slots, jnp.int32),
+            steps=jnp.zeros((1,), jnp.int32),
+        )
+        return write_out(carry)
+
+    def step(params: Any, carry: RefillCarry, seeds: jax.Array) -> RefillCarry:
+        s = carry.slots
+        new_state, new_pstate, _ = control_step(
+            scene, policy, params, s.state, s.pstate, s.keys, s.t
+        )
+        live = ~s.ended
+        acc = accumulate(s.acc, new_state, new_pstate, live, s.t, policy, budget_ms)
+        slots = s.replace(state=new_state, pstate=new_pstate, acc=acc, t=s.t + 1)
+        carry = write_out(carry.replace(slots=slots, steps=carry.steps + 1))
+        due = (carry.steps[0] % refill_every == 0) & jnp.any(
+            carry.slots.ended & (carry.slots.seed_index < seeds.shape[0])
+        )
+        return jax.lax.cond(due, refill, lambda p, c, _: c, params, carry, seeds)
+
+    def advance(
+        params: Any, carry: RefillCarry, seeds: jax.Array, budget: jax.Array
+    ) -> RefillCarry:
+        stop_at = carry.steps[0] + budget[0]
+
+        def going(c: RefillCarry) -> jax.Array:
+            return ~jnp.all(c.finished) & (c.steps[0] < stop_at)
+
+        return jax.lax.while_loop(going, lambda c: step(params, c, seeds), carry)
+
+    return start, advance
+
+
+def finished_prefix(finished: np.ndarray) -> int:
+    """How many seeds, from the first, have all finished: the only outcomes a running rate or a
+    stopping rule may use."""
+    finished = np.asarray(finished, bool)
+    unfinished = np.flatnonzero(~finished)
+    return int(unfinished[0]) if unfinished.size else len(finished)
+
+
+def device_order(n_seeds: int, n_devices: int) -> np.ndarray:
+    """The order in which seed rows go to devices (device d gets rows d, d + D, ...): every
+    device then works on the same stretch of seeds, so the finished prefix grows evenly.
+    `n_seeds` must be a multiple of `n_devices`."""
+    return np.arange(n_seeds).reshape(-1, n_devices).T.reshape(-1)
+
+
+class RefillRunner(EpisodeRunner):
+    """`EpisodeRunner` with continuous batching: `n_envs` slots take seeds one after another
+    until every seed has run (see the module docstring).
+
+    All seeds of a `run` go to the devices at once (device d gets rows d, d + D, ...), with
+    `n_envs / D` slots each; the loop returns to the host every `segment_steps` control steps
+    (default: one episode length) to report progress and let `until` look at the finished
+    prefix of seeds at sizes `n_envs`, `2 n_envs`, ... fixed before the run (as the chunked
+    runner's looks). Refilling every `refill_every` control steps batches the resets. Needs
+    per-env physics states (`c`, `mjx`): a slot's reset replaces its slice of every leaf.
+    """
+
+    def __init__(
+        self,
+        scene: Scene,
+        policy: Policy,
+        *,
+        n_envs: int,
+        max_steps: int,
+        refill_every: int = 1,
+        segment_steps: int | None = None,
+        memory_fraction: float = 0.85,
+        devices: Sequence[jax.Device] | None = None,
+    ) -> None:
+        check_batching("refill", scene.backend.name, refill_every)
+        if segment_steps is not None and segment_steps < 1:
+            raise ConfigError(f"segment_steps must be a positive integer, got {segment_steps}")
+        super().__init__(
+            scene,
+            policy,
+            n_envs=n_envs,
+            max_steps=max_steps,
+            memory_fraction=memory_fraction,
+            devices=devices,
+        )
+        self.refill_every = refill_every
+        self.segment_steps = segment_steps or max_steps
+        self._slots = self.per_device  # as asked; a run with fewer seeds per device uses fewer
+        self._seeds_per_device = 0
+        self._start: Program | None = None
+
+    def _lower_compile(self, params: Any) -> Program:
+        """Compile `start` and `advance` for `per_device` slots and the current seed count;
+        return `advance` (what runs for the whole run, and what memory is fitted to)."""
+        start, advance = make_refill_fns(
+            self.scene, self.policy, self.max_steps, self.per_device, self.refill_every
+        )
+        n_dev = len(self.layout.devices)
+        seeds = self.layout.put_envs(np.zeros(self._seeds_per_device * n_dev, np.int32))
+        budget = self.layout.put_envs(np.ones(n_dev, np.int32))
+        policy = self.policy
+
+        def lower(program: str) -> Callable:
+            return lambda fn, local_args: self._lower(
+                program,
+                fn,
+                local_args,
+                cacheable=policy.cache_key is not None,
+                policy=policy.cache_key,
+                max_steps=self.max_steps,
+                slots=self.per_device,
+                refill_every=self.refill_every,
+            )
+
+        self._start = self.layout.per_device(start).compile((params, seeds), lower("refill-start"))
+        carry = self._start(params, seeds)
+        return self.layout.per_device(advance).compile(
+            (params, carry, seeds, budget), lower("refill-advance")
+        )
+
+    def run(
+        self,
+        params: Any,
+        seeds: np.ndarray,
+        on_chunk: Callable[[int, int], None] | None = None,
+        until: Callable[[dict[str, Any]], bool] | None = None,
+    ) -> tuple[dict[str, Any], RunTiming]:
+        """Roll out every seed, as `EpisodeRunner.run` (same arrays); `on_chunk(done, total)`
+        reports the finished prefix after each segment, and `until` sees the outcomes of the
+        first `n_envs`, `2 n_envs`, ... seeds once all of them have finished (the episode
+        factors are added afterwards, for the seeds the run keeps)."""
+        seeds = np.asarray(seeds, dtype=np.int64)
+        check_counts(self.per_device, len(seeds), self.max_steps)
+        if seeds.min() < 0 or seeds.max() >= 2**31:
+            raise ConfigError(
+                f"seeds must lie in [0, 2**31), got range [{seeds.min()}, {seeds.max()}]"
+            )
+        layout, n = self.layout, len(seeds)
+        n_dev = len(layout.devices)
+        padded = seed_chunks(seeds, -(-n // n_dev) * n_dev)[0]
+        per_dev = len(padded) // n_dev
+        compile_s = 0.0
+        if self._compiled is None or per_dev != self._seeds_per_device:
+            self._seeds_per_device = per_dev
+            self.per_device = min(self._slots, per_dev)
+            compile_s = self._compile(params)
+        params = layout.put_replicated(params) if params is not None else None
+        order = device_order(len(padded), n_dev)
+        rows_of = np.argsort(order)  # global seed row -> position in the devices' layout
+        device_seeds = layout.put_envs(padded[order])
+        budget = layout.put_envs(np.full(n_dev, self.segment_steps, np.int32))
+        looks = [*range(self.n_envs, n, self.n_envs), n]
+        if on_chunk is not None:
+            on_chunk(0, n)
+        assert self._start is not None
+        t0 = time.perf_counter()
+        carry = self._start(params, device_seeds)
+        segment_s: list[float] = []
+        done = 0
+        while True:
+            t = time.perf_counter()
+            carry = self._compiled(params, carry, device_seeds, budget)
+            finished = np.asarray(layout.get(carry.finished))[rows_of][:n]
+            segment_s.append(time.perf_counter() - t)
+            prefix = finished_prefix(finished)
+            if on_chunk is not None:
+                on_chunk(prefix, n)
+            stop = False
+            while until is not None and looks and looks[0] <= prefix:
+                done = looks.pop(0)
+                if until(self._outcomes(carry, rows_of, done)):
+                    stop = True
+                    break
+            if stop or prefix == n:
+                done = done if stop else n
+                break
+        run_s = time.perf_counter() - t0
+        arrays = self._outcomes(carry, rows_of, done)
+        if self._factor_fn is not None:
+            chunks = seed_chunks(seeds[:done], self.n_envs)
+            values = [layout.get(self._factor_fn(layout.put_envs(c))) for c in chunks]
+            for k in values[0]:
+                arrays[FACTOR_PREFIX + k] = np.concatenate([np.asarray(v[k]) for v in values])[
+                    :done
+                ]
+        steps = np.asarray(layout.get(carry.steps))
+        timing = RunTiming(
+            compile_s=compile_s,
+            run_s=run_s,
+            chunk_s=tuple(segment_s),
+            scan_steps=self.max_steps,
+            n_envs=self.n_envs,
+            n_devices=n_dev,
+            bytes_per_device=self._need,
+            batch_steps=round(float(steps.mean())),
+        )
+        return arrays, timing
+
+    def _outcomes(self, carry: RefillCarry, rows_of: np.ndarray, n: int) -> dict[str, Any]:
+        """The first `n` seeds' outcomes by field name (see `outcome_arrays`)."""
+        rows = self.layout.get(carry.results)
+        return {k: np.asarray(v)[rows_of][:n] for k, v in outcome_arrays(rows).items()}

@@ -1,0 +1,91 @@
+"""`run_seeds`: roll out every seed once, with either way of batching them.
+
+`chunks` runs fixed batches of `n_envs` seeds, each for the full episode length; `refill`
+(continuous batching) hands a slot the next seed as soon as its episode ends, so the batch does
+not simulate finished episodes. Per seed, both give the same episode (bit for bit on `c`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import jax
+import numpy as np
+
+from openral_mjx.core.errors import ConfigError, unknown
+from openral_mjx.policies.base import Policy
+from openral_mjx.runner.chunks import EpisodeRunner, RunTiming, check_counts
+from openral_mjx.runner.refill import BATCHING, RefillRunner
+from openral_mjx.scenes.base import Scene
+
+
+def make_runner(
+    scene: Scene,
+    policy: Policy,
+    *,
+    n_envs: int,
+    max_steps: int,
+    batching: str = "chunks",
+    refill_every: int = 1,
+    record: tuple[str, ...] = (),
+    memory_fraction: float = 0.85,
+    devices: Sequence[jax.Device] | None = None,
+) -> EpisodeRunner:
+    """The runner for `batching` (`chunks` or `refill`); traces (`record`) need `chunks`."""
+    if batching not in BATCHING:
+        raise unknown("batching", batching, BATCHING)
+    if batching == "chunks":
+        return EpisodeRunner(
+            scene,
+            policy,
+            n_envs=n_envs,
+            max_steps=max_steps,
+            record=record,
+            memory_fraction=memory_fraction,
+            devices=devices,
+        )
+    if record:
+        raise ConfigError(f"per-step traces {list(record)} need batching 'chunks'")
+    return RefillRunner(
+        scene,
+        policy,
+        n_envs=n_envs,
+        max_steps=max_steps,
+        refill_every=refill_every,
+        memory_fraction=memory_fraction,
+        devices=devices,
+    )
+
+
+def run_seeds(
+    scene: Scene,
+    policy: Policy,
+    params: Any,
+    *,
+    seeds: np.ndarray,
+    n_envs: int,
+    max_steps: int,
+    on_chunk: Callable[[int, int], None] | None = None,
+    record: tuple[str, ...] = (),
+    memory_fraction: float = 0.85,
+    devices: Sequence[jax.Device] | None = None,
+    until: Callable[[dict[str, Any]], bool] | None = None,
+    batching: str = "chunks",
+    refill_every: int = 1,
+) -> tuple[dict[str, Any], RunTiming]:
+    """Roll out every seed once with `min(n_envs, len(seeds))` envs at a time (see
+    `EpisodeRunner` and `RefillRunner`)."""
+    check_counts(n_envs, len(seeds), max_steps)
+    runner = make_runner(
+        scene,
+        policy,
+        n_envs=min(n_envs, len(seeds)),
+        max_steps=max_steps,
+        batching=batching,
+        refill_every=refill_every,
+        record=record,
+        memory_fraction=memory_fraction,
+        devices=devices,
+    )
+    return runner.run(params, seeds, on_chunk, until)

@@ -93,7 +93,7 @@ def test_each_step_alone(capsys, tmp_path):
     "argv, needle",
     [
         (["--batching", "nope"], "unknown batching 'nope'; valid: chunks, refill"),
-        (["--batching", "refill", "--backend", "warp"], "backend 'warp' cannot"),
+        (["--batching", "refill", "--scene", "robosuite"], "host scene.s envs live in its workers"),
         (["--batching", "refill", "--refill-every", "0"], "refill_every must be a positive"),
     ],
 )

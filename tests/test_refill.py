@@ -51,6 +51,20 @@ def test_every_seed_gives_the_chunked_episode_bit_for_bit(push_c, chunked, n_env
         assert timing.env_steps < chunk_timing.env_steps
 
 
+def test_refill_on_warp_cpu_is_bit_identical_to_chunks(push_warp):
+    """Warp shares one contact buffer across the batch: a reset slot takes the fresh state's
+    per-env leaves and leaves the shared buffer to the next step's collision pass. In Warp's
+    CPU mode episodes do not depend on the batch, so outcomes match chunks bit for bit."""
+    policy = make_policy("scripted", push_warp)
+    seeds = np.arange(40, 50)
+    kw = dict(seeds=seeds, n_envs=4, max_steps=80)
+    reference, _ = run_seeds(push_warp, policy, None, **kw)
+    assert 0 < reference["success"].sum() < len(seeds)
+    arrays, _ = run_seeds(push_warp, policy, None, **kw, batching="refill", refill_every=2)
+    for k in reference:
+        np.testing.assert_array_equal(arrays[k], reference[k], err_msg=k)
+
+
 def test_until_sees_fixed_prefixes_only(push_c, chunked):
     """Stopping rules look at the first 5, 10, 15 seeds (fixed before the run), each once all of
     them have finished, never at whatever happened to finish."""

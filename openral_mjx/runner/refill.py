@@ -7,7 +7,9 @@ reset under `lax.cond`, skipped when no slot has ended). Slots with nothing left
 until the batch drains. Seed s's episode starts from `reset_with_seed(s, reset key of s)` with
 a fresh policy state and its own key stream from step 0: nothing carries over from the slot's
 earlier episode, so seed s gives the episode the fixed-chunk runner gives it (bit for bit
-where a backend's episodes do not depend on the batch: `c`, and warp on a CPU).
+where a backend's episodes do not depend on the batch: `c`, and warp on a CPU). A reset slot
+takes the fresh state's slice of every per-env leaf; leaves the whole batch shares (warp's
+contact buffer) are rebuilt by the next step and stay as they are.
 
 The loop runs in segments of at most a given number of control steps, so the host can read
 between segments which seeds have finished. Statistics and stopping rules must use the
@@ -58,11 +60,10 @@ def check_batching(
         raise unknown("batching", batching, BATCHING)
     if refill_every < 1:
         raise ConfigError(f"refill_every must be a positive integer, got {refill_every}")
-    if batching == "refill" and backend not in ("mjx", "c"):
+    if batching == "refill" and backend not in ("mjx", "warp", "c"):
         raise ConfigError(
             f"batching 'refill' resets single envs in place, which backend {backend!r} cannot "
-            "(warp shares its contact buffer across the batch; host scenes keep their envs "
-            "in workers): use batching 'chunks', or backend mjx or c"
+            "(a host scene's envs live in its workers): use batching 'chunks'"
         )
     if batching == "refill" and traces:
         raise ConfigError("per-step traces (reward curves for plots) need batching 'chunks'")
@@ -93,13 +94,33 @@ class RefillCarry:
     steps: jax.Array  # (1,) int32: control steps the batch has taken
 
 
-def _where(mask: jax.Array, a: Any, b: Any) -> Any:
-    """Per slot (leading axis): `a` where `mask`, else `b`, leaf by leaf."""
+def _where(mask: jax.Array, a: Any, b: Any, per_env: Any = None) -> Any:
+    """Per slot (leading axis): `a` where `mask`, else `b`, leaf by leaf. Where `per_env` (a
+    tree of bools like `a`) says a leaf has no slot axis, it is a buffer the whole batch
+    shares (warp's contact buffer): it comes from `b`, and the next step rebuilds it."""
 
-    def pick(x: jax.Array, y: jax.Array) -> jax.Array:
+    def pick(x: jax.Array, y: jax.Array, batched: bool = True) -> jax.Array:
+        if not batched:
+            return y
         return jnp.where(mask.reshape(mask.shape + (1,) * (x.ndim - 1)), x, y)
 
-    return jax.tree.map(pick, a, b)
+    if per_env is None:
+        return jax.tree.map(pick, a, b)
+    return jax.tree.map(pick, a, b, per_env)
+
+
+def per_env_leaves(scene: Scene) -> Any:
+    """For each leaf of a batch of the scene's states: whether it has the env axis (vmap adds
+    one to every per-env leaf; a leaf the batch shares keeps the single env's rank)."""
+    seed = jax.ShapeDtypeStruct((), jnp.int32)
+    key = jax.ShapeDtypeStruct((2,), jnp.uint32)
+    one = jax.eval_shape(scene.reset_with_seed, seed, key)
+    two = jax.eval_shape(
+        jax.vmap(scene.reset_with_seed),
+        jax.ShapeDtypeStruct((2,), jnp.int32),
+        jax.ShapeDtypeStruct((2, 2), jnp.uint32),
+    )
+    return jax.tree.map(lambda a, b: b.ndim == a.ndim + 1, one, two)
 
 
 def make_refill_fns(
@@ -110,6 +131,7 @@ def make_refill_fns(
     more steps have run. `n_slots <= n` envs run at once."""
 
     budget_ms = 1000.0 * scene.control_dt
+    state_per_env = per_env_leaves(scene)
 
     def fresh(params: Any, seeds: jax.Array, rows: jax.Array) -> Slots:
         del params
@@ -147,7 +169,8 @@ def make_refill_fns(
         rows = carry.next_seed[0] + jnp.cumsum(want) - 1
         take = want & (rows < n)
         new = fresh(params, seeds, jnp.where(take, rows, 0))
-        slots = _where(take, new, s)
+        slots = _where(take, new.replace(state=None), s.replace(state=None))
+        slots = slots.replace(state=_where(take, new.state, s.state, state_per_env))
         slots = slots.replace(
             seed_index=jnp.where(want & ~take, n, slots.seed_index),
         )
@@ -221,8 +244,7 @@ class RefillRunner(EpisodeRunner):
     `n_envs / D` slots each; the loop returns to the host every `segment_steps` control steps
     (default: one episode length) to report progress and let `until` look at the finished
     prefix of seeds at sizes `n_envs`, `2 n_envs`, ... fixed before the run (as the chunked
-    runner's looks). Refilling every `refill_every` control steps batches the resets. Needs
-    per-env physics states (`c`, `mjx`): a slot's reset replaces its slice of every leaf.
+    runner's looks). Refilling every `refill_every` control steps batches the resets.
     """
 
     def __init__(

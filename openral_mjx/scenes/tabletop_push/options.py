@@ -1,0 +1,94 @@
+"""`tabletop_push` options: every geometry knob and threshold, and which robot, validated once.
+
+A frozen dataclass fed from YAML (`configs/tabletop_push.yaml`) or the CLI; `__post_init__`
+rejects inverted ranges and non-positive sizes with a `ConfigError` naming them, and
+`robot_spec` resolves the robot (registered, or a user MJCF).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+from openral_mjx.core.errors import ConfigError
+from openral_mjx.core.options import check
+from openral_mjx.robots import ROBOTS, RobotSpec, user_robot
+from openral_mjx.scenes.sensor_obs import SensorObsOptions
+
+Pair = tuple[float, float]
+Vec3 = tuple[float, float, float]
+
+
+@dataclasses.dataclass(frozen=True)
+class TabletopPushOptions(SensorObsOptions):
+    """Every geometry knob and threshold of `tabletop_push` (SI units, world frame).
+
+    The robot base sits on the table top at (`robot_base_x`, `robot_base_y`), facing
+    `robot_base_yaw` (rad); spawn ranges and the goal region are in the world frame. Sensor
+    observations (`obs_*`, off by default): depth cameras `overhead` and `front`, RGB on
+    `warp`, and a laser on a robot body or site (a user robot with a mobile base).
+    """
+
+    robot: str = "so101"
+    robot_mjcf: str | None = None
+    ee_site: str = "ee"
+    robot_base_x: float = 0.0
+    robot_base_y: float = 0.0
+    robot_base_yaw: float = 0.0
+    table_size: Pair = (0.6, 0.7)
+    table_center: Pair = (0.2, 0.0)
+    table_height: float = 0.75
+    cube_size: float = 0.03
+    cube_mass: float = 0.05
+    cube_friction: float = 0.6
+    cube_spawn_x: Pair = (0.17, 0.25)
+    cube_spawn_y: Pair = (-0.08, 0.08)
+    goal_distance: Pair = (0.06, 0.10)
+    goal_region_x: Pair = (0.14, 0.28)
+    goal_region_y: Pair = (-0.12, 0.12)
+    goal_radius: float = 0.02
+    rest_height_tol: float = 0.005
+    rest_speed: float = 0.05
+    timestep: float = 0.002
+    n_substeps: int = 10
+    solver_iterations: int = 6
+    solver_ls_iterations: int = 8
+    max_steps: int = 200
+    camera_overhead_pos: Vec3 = (0.2, 0.0, 1.45)
+    camera_front_pos: Vec3 = (0.75, 0.0, 1.05)
+    camera_target: Vec3 = (0.2, 0.0, 0.75)
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        for name in (
+            "cube_spawn_x",
+            "cube_spawn_y",
+            "goal_distance",
+            "goal_region_x",
+            "goal_region_y",
+        ):
+            lo, hi = getattr(self, name)
+            check(lo <= hi, f"option {name}={[lo, hi]}: low must be <= high")
+        for name in (
+            "cube_size",
+            "cube_mass",
+            "goal_radius",
+            "timestep",
+            "table_height",
+            "rest_height_tol",
+            "rest_speed",
+        ):
+            check(getattr(self, name) > 0, f"option {name}={getattr(self, name)}: must be > 0")
+        check(min(self.table_size) > 0, f"option table_size={list(self.table_size)}: must be > 0")
+        for name in ("n_substeps", "max_steps", "solver_iterations", "solver_ls_iterations"):
+            check(getattr(self, name) >= 1, f"option {name}={getattr(self, name)}: must be >= 1")
+        check(self.cube_friction >= 0, f"option cube_friction={self.cube_friction}: must be >= 0")
+
+    def robot_spec(self) -> RobotSpec:
+        """The registered robot, or the user MJCF when `robot_mjcf` is set."""
+        if self.robot_mjcf is not None:
+            path = Path(self.robot_mjcf)
+            if not path.is_file():
+                raise ConfigError(f"robot MJCF {self.robot_mjcf!r} does not exist")
+            return user_robot(path, self.ee_site)
+        return ROBOTS.get(self.robot)

@@ -12,28 +12,22 @@ from __future__ import annotations
 
 import dataclasses
 import sys
-import time
 from pathlib import Path
 from typing import Any
 
-import jax
-import numpy as np
 import tyro
 
 from openral_mjx.cli.common import command_line, guarded
 from openral_mjx.core.errors import ConfigError
-from openral_mjx.core.files import write_json_atomic
-from openral_mjx.core.options import load_yaml, parse_overrides, to_dict
-from openral_mjx.physics import PhysicsSettings, resolve_backend_name
-from openral_mjx.policies.mlp import MlpConfig, check_compatible, init_params, load_mlp, save_mlp
+from openral_mjx.core.options import load_yaml, parse_overrides
+from openral_mjx.physics import resolve_backend_name
 from openral_mjx.runner.compile_cache import enable_compilation_cache
-from openral_mjx.scenes import SCENES, Scene, make_scene
-from openral_mjx.training.bc import BCConfig, collect_demos, fit, policy_config
+from openral_mjx.training import runs
+from openral_mjx.training.bc import BCConfig
 from openral_mjx.training.curves import can_plot, plot_learning_curve
-from openral_mjx.training.evaluation import TEST_SEEDS, VALIDATION_SEEDS, HeldOutEvaluator
+from openral_mjx.training.evaluation import TEST_SEEDS
 from openral_mjx.training.ppo import PPOConfig
 from openral_mjx.training.run_dir import RunDir
-from openral_mjx.training.session import PPOSession, Schedule
 
 
 @dataclasses.dataclass
@@ -161,15 +155,6 @@ def _scene_options(args: SceneArgs) -> dict[str, Any]:
     return options
 
 
-def _build_scene(
-    name: str, options: dict[str, Any], backend: str, threads: int | None, batch: int
-) -> Scene:
-    """The scene on `backend`, its buffers (`warp`) sized for `batch` envs per device."""
-    SCENES.get(name)
-    settings = PhysicsSettings(threads=threads, batch_size=batch)
-    return make_scene(name, options, backend=backend, settings=settings)
-
-
 def _fmt_steps(n: float) -> str:
     return f"{n / 1e6:.2f}M" if n >= 1e6 else f"{n / 1e3:.0f}k"
 
@@ -178,13 +163,6 @@ def _fmt_steps(n: float) -> str:
 
 
 def run_bc(args: BcArgs) -> int:
-    for name in ("n_demos", "n_envs"):
-        if getattr(args, name) < 1:
-            raise ConfigError(f"{name} must be a positive integer, got {getattr(args, name)}")
-    if args.eval_episodes < 0:
-        raise ConfigError(f"eval_episodes must be >= 0, got {args.eval_episodes}")
-    if args.out.exists() and not args.out.is_dir():
-        raise ConfigError(f"--out {str(args.out)!r} is a file; give a directory")
     config = BCConfig(
         hidden=args.hidden,
         activation=args.activation,
@@ -197,57 +175,30 @@ def run_bc(args: BcArgs) -> int:
     backend = resolve_backend_name(args.backend)
     if args.compile_cache:
         enable_compilation_cache()
-    scene = _build_scene(args.scene, _scene_options(args), backend, args.threads, args.n_envs)
-    steps = args.max_steps or scene.max_steps
-    t0 = time.perf_counter()
-    _log(f"demonstrations: {args.n_demos} expert episodes on {backend} ...")
-    demos = collect_demos(scene, n_episodes=args.n_demos, n_envs=args.n_envs, max_steps=steps)
-    demo_s = time.perf_counter() - t0
-    _log(
-        f"demonstrations: {demos.n_successful}/{demos.n_episodes} successful, "
-        f"{len(demos.obs):,} transitions, {demo_s:.1f} s ({demos.env_steps_per_s:,.0f} steps/s)"
+    summary = runs.run_bc(
+        args.scene,
+        _scene_options(args),
+        backend,
+        args.out,
+        config,
+        threads=args.threads,
+        n_demos=args.n_demos,
+        n_envs=args.n_envs,
+        max_steps=args.max_steps,
+        eval_episodes=args.eval_episodes,
+        command=command_line("openral_mjx.finetune", ["bc", *_bc_argv(args, backend)]),
+        log=_log,
     )
-    mlp_config = policy_config(scene, demos, config)
-
-    def on_epoch(epoch: int, loss: float) -> None:
-        _log(f"bc epoch {epoch}/{config.epochs}: loss {loss:.4f}")
-
-    t1 = time.perf_counter()
-    params, history = fit(mlp_config, demos, config, on_epoch)
-    fit_s = time.perf_counter() - t1
-    mlp_config = dataclasses.replace(
-        mlp_config,
-        metadata={
-            **mlp_config.metadata,
-            "trained": {"method": "bc", "demos": demos.n_successful, "final_loss": history[-1]},
-        },
-    )
-    save_mlp(args.out, mlp_config, jax.device_get(params))
-    summary: dict[str, Any] = {
-        "scene": scene.name,
-        "backend": backend,
-        "demo_episodes": demos.n_episodes,
-        "demo_successful": demos.n_successful,
-        "transitions": len(demos.obs),
-        "demo_s": demo_s,
-        "fit_s": fit_s,
-        "losses": history,
-        "command": command_line("openral_mjx.finetune", ["bc", *_bc_argv(args, backend)]),
-    }
     line = ""
-    if args.eval_episodes:
-        evaluator = HeldOutEvaluator(
-            scene, mlp_config, n_episodes=args.eval_episodes, n_envs=args.n_envs, max_steps=steps
-        )
-        r = evaluator(params)
-        summary["validation"] = {**dataclasses.asdict(r), "first_seed": VALIDATION_SEEDS}
+    if "validation" in summary:
+        r = summary["validation"]
         line = (
-            f", validation success {100 * r.success_rate:.1f}% "
-            f"[{100 * r.ci_low:.1f}, {100 * r.ci_high:.1f}] ({r.n_episodes} held-out seeds)"
+            f", validation success {100 * r['success_rate']:.1f}% "
+            f"[{100 * r['ci_low']:.1f}, {100 * r['ci_high']:.1f}] "
+            f"({r['n_episodes']} held-out seeds)"
         )
-    write_json_atomic(args.out / "bc.json", summary)
-    n = len(demos.obs)
-    print(f"bc on {scene.name}/{backend}: {n:,} transitions, loss {history[-1]:.4f}{line}")
+    n, loss = summary["transitions"], summary["losses"][-1]
+    print(f"bc on {summary['scene']}/{backend}: {n:,} transitions, loss {loss:.4f}{line}")
     print(f"policy: {args.out} (evaluate with --policy mlp:{args.out})")
     return 0
 
@@ -269,46 +220,27 @@ def _bc_argv(args: BcArgs, backend: str) -> list[str]:
 # ---- ppo -----------------------------------------------------------------------------------
 
 
-def _scratch_config(scene: Scene, args: PpoArgs) -> MlpConfig:
-    """A fresh policy: actions relative to the joints, `u` = 5% of each control range."""
-    low, high = (np.asarray(x) for x in scene.action_bounds())
-    return MlpConfig(
-        obs_size=scene.observation_size,
-        action_size=scene.action_size,
-        action_offset=(0.0,) * scene.action_size,
-        action_scale=tuple(float(x) for x in 0.05 * (high - low)),
-        action_base_index=scene.action_obs_index(),
-        hidden=args.hidden,
-        activation=args.activation,
-        metadata={
-            "scene": scene.name,
-            "robot": scene.robot_name,
-            "scene_options": to_dict(scene.options),
-        },
-    )
-
-
-def _ppo_config(args: PpoArgs, scene: Scene) -> PPOConfig:
-    normalizer = args.init is None if args.update_normalizer is None else args.update_normalizer
-    return PPOConfig(
-        n_envs=args.n_envs,
-        unroll_length=args.unroll_length,
-        n_minibatches=args.minibatches,
-        n_epochs=args.epochs,
-        actor_lr=args.actor_lr,
-        critic_lr=args.critic_lr,
-        target_kl=args.target_kl,
-        gamma=args.gamma,
-        gae_lambda=args.gae_lambda,
-        clip_eps=args.clip,
-        entropy_coef=args.entropy,
-        critic_warmup=args.critic_warmup,
-        reward_scale=args.reward_scale,
-        success_bonus=args.success_bonus,
-        max_steps=args.max_steps or scene.max_steps,
-        update_normalizer=normalizer,
-        seed=args.seed,
-    )
+def _ppo_fields(args: PpoArgs) -> dict[str, Any]:
+    """`PPOConfig` fields from the flags (`max_steps` None: the scene's)."""
+    return {
+        "n_envs": args.n_envs,
+        "unroll_length": args.unroll_length,
+        "n_minibatches": args.minibatches,
+        "n_epochs": args.epochs,
+        "actor_lr": args.actor_lr,
+        "critic_lr": args.critic_lr,
+        "target_kl": args.target_kl,
+        "gamma": args.gamma,
+        "gae_lambda": args.gae_lambda,
+        "clip_eps": args.clip,
+        "entropy_coef": args.entropy,
+        "critic_warmup": args.critic_warmup,
+        "reward_scale": args.reward_scale,
+        "success_bonus": args.success_bonus,
+        "max_steps": args.max_steps,
+        "update_normalizer": args.update_normalizer,
+        "seed": args.seed,
+    }
 
 
 def _plot(run_dir: RunDir, settings: dict[str, Any]) -> None:
@@ -377,39 +309,20 @@ def run_ppo(args: PpoArgs) -> int:
             },
             "log_every": args.log_every,
         }
-    if int(settings["num_timesteps"]) < 1:
-        n = settings["num_timesteps"]
-        raise ConfigError(f"num_timesteps must be a positive integer, got {n}")
     if args.compile_cache:
         enable_compilation_cache()
-    n_envs = settings["ppo"]["n_envs"] if args.resume else args.n_envs
-    batch = max(n_envs, settings["schedule"]["eval_n_envs"])
-    scene = _build_scene(
-        settings["scene"], settings["scene_options"], settings["backend"], args.threads, batch
+    start = None
+    if not args.resume:
+        start = runs.NewPolicy(args.init, args.hidden, args.activation, args.seed)
+    run = runs.prepare_ppo(
+        run_dir,
+        settings,
+        ppo=None if args.resume else _ppo_fields(args),
+        start=start,
+        threads=args.threads,
+        command=command_line("openral_mjx.finetune", ["ppo", *sys.argv[2:]]),
     )
-    init_policy = None
-    if args.resume:
-        fields = {**settings["ppo"], "critic_hidden": tuple(settings["ppo"]["critic_hidden"])}
-        ppo_config = PPOConfig(**fields)
-        mlp_config = MlpConfig.from_json(settings["mlp"])
-    else:
-        ppo_config = _ppo_config(args, scene)
-        if args.init is not None:
-            mlp_config, init_policy = load_mlp(args.init)
-            check_compatible(mlp_config, scene, f"--init {str(args.init)!r}")
-        else:
-            mlp_config = _scratch_config(scene, args)
-            init_policy = init_params(mlp_config, jax.random.PRNGKey(args.seed + 1))
-    num_updates = -(-int(settings["num_timesteps"]) // ppo_config.steps_per_update)
-    schedule = Schedule(num_updates=num_updates, **settings["schedule"])
-    if args.resume:
-        run_dir.save_settings(settings)
-    else:
-        settings["ppo"] = dataclasses.asdict(ppo_config)
-        settings["mlp"] = mlp_config.to_json()
-        settings["command"] = command_line("openral_mjx.finetune", ["ppo", *sys.argv[2:]])
-        run_dir.create(settings)
-
+    scene, num_updates, ppo_config = run.scene, run.num_updates, run.session.ppo.config
     progress = _Progress(run_dir, settings, num_updates)
     if not can_plot():
         _log(
@@ -421,8 +334,7 @@ def run_ppo(args: PpoArgs) -> int:
         f"{ppo_config.steps_per_update:,} steps ({ppo_config.n_envs} envs x "
         f"{ppo_config.unroll_length}), from {settings['init'] or 'scratch'}"
     )
-    session = PPOSession(scene, run_dir, mlp_config, ppo_config, schedule, on_row=progress)
-    summary = session.run(init_policy, resume=args.resume)
+    summary = run.run(on_row=progress)
     progress.plot()
     init = summary["init"]
     start = "" if init is None else f"{100 * init['success_rate']:.1f}% -> "

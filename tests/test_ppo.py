@@ -1,10 +1,12 @@
-"""PPO's pieces against references: GAE against the textbook recursion, the Gaussian log
-density against scipy, the training envs' time limit and auto-reset, config validation."""
+"""PPO's pieces against references: GAE (brax's `compute_gae` behind our adapter) against the
+textbook recursion and against brax called directly, the Gaussian log density (brax's) against
+scipy, the training envs' time limit and auto-reset, config validation."""
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from brax.training.agents.ppo.losses import compute_gae
 from scipy.stats import norm
 
 from openral_mjx.core.errors import ConfigError
@@ -42,6 +44,21 @@ def test_gae_matches_reference():
     )
     ref = _gae_reference(reward, value, next_value, terminal, done, 0.97, 0.9)
     np.testing.assert_allclose(got, ref, rtol=1e-5, atol=1e-5)
+
+
+def test_gae_without_episode_ends_is_brax_unchanged():
+    """Where no episode ends, our bootstrap (`next_value[t]`) is brax's (`value[t+1]`), so the
+    adapter must return brax's own estimates: `vs - value` of `compute_gae`."""
+    rng = np.random.default_rng(2)
+    T, n = 7, 4
+    reward, value = (jnp.asarray(rng.normal(size=(T, n)), jnp.float32) for _ in range(2))
+    bootstrap = jnp.asarray(rng.normal(size=n), jnp.float32)
+    next_value = jnp.concatenate([value[1:], bootstrap[None]])
+    zeros = jnp.zeros((T, n), jnp.float32)
+    got = gae(reward, value, next_value, zeros, zeros, 0.99, 0.95)
+    vs, _ = compute_gae(zeros, zeros, reward, value, bootstrap, lambda_=0.95, discount=0.99)
+    np.testing.assert_allclose(got, vs - value, rtol=1e-5, atol=1e-5)
+    assert np.abs(np.asarray(got)).max() > 0.1  # not trivially zero
 
 
 def test_gaussian_logp_matches_scipy():

@@ -1,4 +1,5 @@
-"""PPO (clipped surrogate, GAE) on optax: one jitted function per update, all state a pytree.
+"""PPO (clipped surrogate, GAE) on optax and brax's PPO pieces: one jitted function per update,
+all state a pytree.
 
 An update rolls the batch of training envs forward `unroll_length` steps with the Gaussian
 `mlp` policy (sampling), computes advantages with GAE, then takes `n_epochs` passes of
@@ -34,6 +35,8 @@ import flax.linen as nn
 import jax
 import jax.numpy as jnp
 import optax
+from brax.training.agents.ppo.losses import compute_gae
+from brax.training.distribution import NormalDistribution
 from flax import struct
 
 from openral_mjx.core.errors import ConfigError
@@ -129,9 +132,13 @@ class Batch:
     target: jax.Array  # value target: advantage + value
 
 
+_GAUSSIAN = NormalDistribution(event_size=1)  # brax's Normal; the event size is unused here
+
+
 def gaussian_logp(u: jax.Array, mean: jax.Array, log_std: jax.Array) -> jax.Array:
-    z = (u - mean) * jnp.exp(-log_std)
-    return jnp.sum(-0.5 * z * z - log_std - 0.5 * math.log(2 * math.pi), axis=-1)
+    """Log density of `u` under the diagonal Gaussian (brax's `NormalDistribution`), summed
+    over the action axis."""
+    return _GAUSSIAN.log_prob((mean, jnp.exp(log_std)), u)
 
 
 def gae(
@@ -143,21 +150,28 @@ def gae(
     gamma: float,
     lam: float,
 ) -> jax.Array:
-    """Generalised advantage estimates over a `(T, n)` rollout (Schulman et al. 2016).
+    """Generalised advantage estimates over a `(T, n)` rollout, by brax's `compute_gae`.
 
     `next_value[t]` is the value of the observation step t led to, before any reset; it is
     dropped where the episode ended by the task (`terminal`), and the recursion is cut at every
-    episode end (`done`).
+    episode end (`done`). brax instead bootstraps step t from the next row (`value[t+1]`, a
+    fresh episode after a reset) and zeroes truncated steps. Adding the difference to the
+    reward, `r_t + gamma ((1 - terminal_t) next_value_t - (1 - done_t) value_{t+1})`, and
+    passing every end as a termination makes brax's recursion this one (up to rounding).
     """
-    delta = reward + gamma * (1.0 - terminal) * next_value - value
-
-    def back(carry, x):
-        d, cut = x
-        adv = d + gamma * lam * (1.0 - cut) * carry
-        return adv, adv
-
-    _, adv = jax.lax.scan(back, jnp.zeros_like(value[0]), (delta, done), reverse=True)
-    return adv
+    value_next_row = jnp.concatenate([value[1:], next_value[-1:]], axis=0)
+    keep = 1.0 - done
+    reward = reward + gamma * ((1.0 - terminal) * next_value - keep * value_next_row)
+    vs, _ = compute_gae(
+        truncation=jnp.zeros_like(done),
+        termination=done,
+        rewards=reward,
+        values=value,
+        bootstrap_value=next_value[-1],
+        lambda_=lam,
+        discount=gamma,
+    )
+    return vs - value
 
 
 def _optimizer(lr: float, max_grad_norm: float) -> optax.GradientTransformation:

@@ -34,6 +34,9 @@ def test_warp_on_four_devices_equals_one_device():
     assert result["n_envs"] == [8, 8] and result["chunks"] == [2, 2]
     assert all(result["equal"].values()), result["equal"]
     assert all(result["capped_equal"].values()), result["capped_equal"]
+    # Continuous batching, 4 devices x 2 slots: the same episodes again.
+    assert result["refill_devices"] == 4 and set(result["refill_equal"]) >= {"success", "steps"}
+    assert all(result["refill_equal"].values()), result["refill_equal"]
     assert any(result["success"])  # episodes long enough to differ if anything were off
 
 

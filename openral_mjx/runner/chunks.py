@@ -145,6 +145,16 @@ class EpisodeRunner:
         self._factor_fn: Callable | None = None
         self._need: int | None = None
 
+    def _checked(self, seeds: np.ndarray) -> np.ndarray:
+        """`seeds` as int64, or a `ConfigError` for none, or one outside [0, 2**31)."""
+        seeds = np.asarray(seeds, dtype=np.int64)
+        check_counts(self.per_device, len(seeds), self.max_steps)
+        if seeds.min() < 0 or seeds.max() >= 2**31:
+            raise ConfigError(
+                f"seeds must lie in [0, 2**31), got range [{seeds.min()}, {seeds.max()}]"
+            )
+        return seeds
+
     @property
     def n_envs(self) -> int:
         """The batch that runs (final once compiled: it may shrink to fit in memory)."""
@@ -236,12 +246,7 @@ class EpisodeRunner:
         further chunk runs and only the seeds run so far are returned. The chunk size is fixed
         before any episode runs (it depends on the devices and memory, never on outcomes).
         """
-        seeds = np.asarray(seeds, dtype=np.int64)
-        check_counts(self.per_device, len(seeds), self.max_steps)
-        if seeds.min() < 0 or seeds.max() >= 2**31:
-            raise ConfigError(
-                f"seeds must lie in [0, 2**31), got range [{seeds.min()}, {seeds.max()}]"
-            )
+        seeds = self._checked(seeds)
         layout = self.layout
         params = layout.put_replicated(params) if params is not None else None
         compile_s = self._compile(params) if self._compiled is None else 0.0

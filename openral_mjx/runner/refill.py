@@ -34,7 +34,6 @@ from openral_mjx.runner.chunks import (
     FACTOR_PREFIX,
     EpisodeRunner,
     RunTiming,
-    check_counts,
     outcome_arrays,
     seed_chunks,
 )
@@ -316,12 +315,7 @@ class RefillRunner(EpisodeRunner):
         reports the finished prefix after each segment, and `until` sees the outcomes of the
         first `n_envs`, `2 n_envs`, ... seeds once all of them have finished (the episode
         factors are added afterwards, for the seeds the run keeps)."""
-        seeds = np.asarray(seeds, dtype=np.int64)
-        check_counts(self.per_device, len(seeds), self.max_steps)
-        if seeds.min() < 0 or seeds.max() >= 2**31:
-            raise ConfigError(
-                f"seeds must lie in [0, 2**31), got range [{seeds.min()}, {seeds.max()}]"
-            )
+        seeds = self._checked(seeds)
         layout, n = self.layout, len(seeds)
         n_dev = len(layout.devices)
         padded = seed_chunks(seeds, -(-n // n_dev) * n_dev)[0]

@@ -21,6 +21,10 @@ sharded, t4 = run_seeds(scene, policy, None, n_envs=8, devices=devices, record=(
 single, t1 = run_seeds(
     scene, policy, None, n_envs=8, devices=devices[:1], record=("actions",), **kw
 )
+# Continuous batching over 4 devices: seeds interleave over the devices' slots.
+refilled, t_refill = run_seeds(
+    scene, policy, None, n_envs=8, devices=devices, batching="refill", **kw
+)
 # Videos re-run a few seeds with every step recorded: each device adds its envs' rows.
 traced = {
     n: trace_seeds(
@@ -43,6 +47,8 @@ print(
             "chunks": [len(t4.chunk_s), len(t1.chunk_s)],
             "equal": {k: bool(np.array_equal(sharded[k], single[k])) for k in sharded},
             "capped_equal": {k: bool(np.array_equal(capped[k], single[k])) for k in capped},
+            "refill_equal": {k: bool(np.array_equal(refilled[k], single[k])) for k in refilled},
+            "refill_devices": t_refill.n_devices,
             "trace_equal": all(trace_equal) and len(trace_equal) > 1,
             "traced_live_steps": int(traced[4][1]["live"].sum()),
             "success": sharded["success"].tolist(),

@@ -34,9 +34,10 @@ def check_run(
     max_steps: int | None,
     seed: int,
     factor_bins: int,
-) -> SequentialRule | None:
+) -> tuple[SequentialRule | None, int]:
     """Check a run's counts before anything is built (`ConfigError` naming the bad value);
-    return the sequential stopping rule for `target_halfwidth`, or None for a fixed count."""
+    return the sequential stopping rule for `target_halfwidth` (None for a fixed count) and
+    how many seeds the run is given (a sequential run's cap)."""
     rule = sequential_rule(n_envs, n_episodes, target_halfwidth, max_episodes)
     episodes = n_envs if n_episodes is None else n_episodes
     if rule is not None:
@@ -46,7 +47,7 @@ def check_run(
         raise ConfigError(f"seed must be >= 0, got {seed}")
     if factor_bins < 1:
         raise ConfigError(f"factor_bins must be a positive integer, got {factor_bins}")
-    return rule
+    return rule, episodes
 
 
 def build_scene(
@@ -148,12 +149,9 @@ def run_evaluation(
     `batching` is `chunks` (fixed batches of `n_envs` seeds) or `refill` (continuous batching:
     a slot whose episode ended takes the next seed, resets batched every `refill_every`
     control steps); per seed the episodes are the same."""
-    rule = check_run(
+    rule, n_episodes = check_run(
         n_envs, n_episodes, target_halfwidth, max_episodes, max_steps, seed, factor_bins
     )
-    if rule is not None:
-        n_episodes = rule.max_episodes
-    n_episodes = n_envs if n_episodes is None else n_episodes
     owned = contextlib.ExitStack()
     with owned:  # on an error, close what this call built (worker processes)
         if isinstance(scene, str):

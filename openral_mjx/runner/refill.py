@@ -132,8 +132,7 @@ def make_refill_fns(
     budget_ms = 1000.0 * scene.control_dt
     state_per_env = per_env_leaves(scene)
 
-    def fresh(params: Any, seeds: jax.Array, rows: jax.Array) -> Slots:
-        del params
+    def fresh(seeds: jax.Array, rows: jax.Array) -> Slots:
         chosen = seeds[rows]
         reset_keys, policy_keys = seed_keys(chosen)
         state = jax.vmap(scene.reset_with_seed)(chosen, reset_keys)
@@ -161,13 +160,13 @@ def make_refill_fns(
             finished=carry.finished.at[rows].set(True, mode="drop"),
         )
 
-    def refill(params: Any, carry: RefillCarry, seeds: jax.Array) -> RefillCarry:
+    def refill(carry: RefillCarry, seeds: jax.Array) -> RefillCarry:
         """Ended slots take the next seeds in order; those past the last seed go idle."""
         s, n = carry.slots, seeds.shape[0]
         want = s.ended & (s.seed_index < n)
         rows = carry.next_seed[0] + jnp.cumsum(want) - 1
         take = want & (rows < n)
-        new = fresh(params, seeds, jnp.where(take, rows, 0))
+        new = fresh(seeds, jnp.where(take, rows, 0))
         slots = _where(take, new.replace(state=None), s.replace(state=None))
         slots = slots.replace(state=_where(take, new.state, s.state, state_per_env))
         slots = slots.replace(
@@ -178,7 +177,7 @@ def make_refill_fns(
 
     def start(params: Any, seeds: jax.Array) -> RefillCarry:
         n = seeds.shape[0]
-        slots = fresh(params, seeds, jnp.arange(n_slots))
+        slots = fresh(seeds, jnp.arange(n_slots))
         info = jax.eval_shape(jax.vmap(scene.episode_info), slots.state)
         results = jax.tree.map(
             lambda x: jnp.zeros((n, *x.shape[1:]), x.dtype),
@@ -205,7 +204,7 @@ def make_refill_fns(
         due = (carry.steps[0] % refill_every == 0) & jnp.any(
             carry.slots.ended & (carry.slots.seed_index < seeds.shape[0])
         )
-        return jax.lax.cond(due, refill, lambda p, c, _: c, params, carry, seeds)
+        return jax.lax.cond(due, refill, lambda c, _: c, carry, seeds)
 
     def advance(
         params: Any, carry: RefillCarry, seeds: jax.Array, budget: jax.Array

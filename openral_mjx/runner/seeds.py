@@ -13,10 +13,9 @@ from typing import Any
 import jax
 import numpy as np
 
-from openral_mjx.core.errors import ConfigError, unknown
 from openral_mjx.policies.base import Policy
 from openral_mjx.runner.chunks import EpisodeRunner, RunTiming, check_counts
-from openral_mjx.runner.refill import BATCHING, RefillRunner
+from openral_mjx.runner.refill import RefillRunner, check_batching
 from openral_mjx.scenes.base import Scene
 
 
@@ -33,8 +32,7 @@ def make_runner(
     devices: Sequence[jax.Device] | None = None,
 ) -> EpisodeRunner:
     """The runner for `batching` (`chunks` or `refill`); traces (`record`) need `chunks`."""
-    if batching not in BATCHING:
-        raise unknown("batching", batching, BATCHING)
+    check_batching(batching, scene.backend.name, refill_every, traces=bool(record))
     if batching == "chunks":
         return EpisodeRunner(
             scene,
@@ -45,8 +43,6 @@ def make_runner(
             memory_fraction=memory_fraction,
             devices=devices,
         )
-    if record:
-        raise ConfigError(f"per-step traces {list(record)} need batching 'chunks'")
     return RefillRunner(
         scene,
         policy,

@@ -81,9 +81,11 @@ class EvalArgs:
     """Cap on a sequential run's episodes (default: enough for any success rate)."""
     max_steps: int | None = None
     """Control steps per episode (default: the scene's)."""
-    batching: str = "chunks"
-    """chunks: fixed batches of n_envs seeds, each run for max_steps; refill: continuous
-    batching, a slot whose episode ended takes the next seed (mjx and c; same episodes)."""
+    batching: str = "auto"
+    """refill: continuous batching, a slot whose episode ended takes the next seed (mjx, warp
+    and c); chunks: fixed batches of n_envs seeds, each run for max_steps; auto: refill when
+    there are more episodes than envs and it applies (not host scenes, not --plots). Per
+    seed the episodes are the same."""
     refill_every: int = 1
     """--batching refill: reset ended slots every this many control steps (batched resets)."""
     seed: int = 0
@@ -296,7 +298,7 @@ def _reproduce(args: EvalArgs, backend: str, out: Path) -> str:
         ("--processes", args.processes if args.processes != 1 else None),
         ("--factor-bins", args.factor_bins if args.factor_bins != 5 else None),
         ("--frames", args.frames or None),
-        ("--batching", args.batching if args.batching != "chunks" else None),
+        ("--batching", args.batching if args.batching != "auto" else None),
         ("--refill-every", args.refill_every if args.refill_every != 1 else None),
     ):
         if value is not None:
@@ -374,8 +376,11 @@ def execute(plan: EvalPlan, built: Built, owned: contextlib.ExitStack) -> Evalua
     ) as progress:
         bar = progress.add_task(f"compiling {args.scene} on {plan.backend}", total=None)
 
-        def on_chunk(done: int, total: int) -> None:
-            progress.update(bar, description="episodes", completed=done, total=total)
+        def on_chunk(done: int, total: int, successes: int) -> None:
+            # Over the first `done` seeds only: the runners report a finished prefix, never
+            # whatever has finished (early successes would inflate it).
+            rate = f" success {100 * successes / done:.1f}%" if done else ""
+            progress.update(bar, description=f"episodes{rate}", completed=done, total=total)
 
         if args.suite is not None:
 
@@ -395,7 +400,7 @@ def execute(plan: EvalPlan, built: Built, owned: contextlib.ExitStack) -> Evalua
                 options=plan.options,
                 command=plan.command,
                 on_task=on_task,
-                on_chunk=lambda done, total: progress.update(bar, completed=done, total=total),
+                on_chunk=lambda done, total, _: progress.update(bar, completed=done, total=total),
             )
         assert built.scene is not None
         evaluation = run_evaluation(

@@ -92,7 +92,7 @@ def test_each_step_alone(capsys, tmp_path):
 @pytest.mark.parametrize(
     "argv, needle",
     [
-        (["--batching", "nope"], "unknown batching 'nope'; valid: chunks, refill"),
+        (["--batching", "nope"], "unknown batching 'nope'; valid: auto, chunks, refill"),
         (["--batching", "refill", "--scene", "robosuite"], "host scene.s envs live in its workers"),
         (["--batching", "refill", "--refill-every", "0"], "refill_every must be a positive"),
     ],
@@ -111,13 +111,15 @@ def _flags(argv: list[str]) -> dict:
 
 def test_sequential_run_with_refill_matches_chunks(monkeypatch, capsys, tmp_path):
     """A sequential run stops at the same look with either batching, with the same episodes
-    (c backend: bit for bit) and the same exact interval; the report says how it batched."""
+    (c backend: bit for bit) and the same exact interval; the report says how it batched.
+    Continuous batching is the default for more episodes than envs."""
     reports = {}
     for batching in ("chunks", "refill"):
         out = tmp_path / f"{batching}.json"
         argv = ["openral_mjx.eval", "--n-envs", "4", "--max-steps", "40", "--threads", "1"]
         argv += ["--target-halfwidth", "0.3", "--no-breakdown", "--out", str(out)]
-        argv += ["--batching", batching, "--seed", "3"]
+        argv += ["--batching", "chunks"] if batching == "chunks" else []
+        argv += ["--seed", "3"]
         monkeypatch.setattr(sys, "argv", argv)
         with pytest.raises(SystemExit) as exc:
             eval_cli.main()
@@ -134,4 +136,4 @@ def test_sequential_run_with_refill_matches_chunks(monkeypatch, capsys, tmp_path
     assert a.sequential.looks == b.sequential.looks
     assert [e.success for e in a.episodes] == [e.success for e in b.episodes]
     assert [e.total_reward for e in a.episodes] == [e.total_reward for e in b.episodes]
-    assert "--batching refill" in b.command
+    assert "--batching chunks" in a.command and "--batching" not in b.command

@@ -70,10 +70,12 @@ def test_gaussian_logp_matches_scipy():
     np.testing.assert_allclose(got, ref, rtol=1e-5)
 
 
-def test_time_limit_and_auto_reset(push_c):
+@pytest.mark.parametrize("backend", ["c", "warp"])
+def test_time_limit_and_auto_reset(request, backend):
     """Envs end at the time limit (or on success), report the observation they ended on, and
-    continue from the fresh states; their counters and returns restart."""
-    scene = push_c
+    continue from the fresh states; their counters and returns restart. On warp, whose batch
+    shares one contact buffer, the reset env then steps exactly as its fresh state does."""
+    scene = request.getfixturevalue(f"push_{backend}")
     env = BatchedEnv(scene, n_envs=3, max_steps=2)
     start = env.reset_states(jax.random.PRNGKey(0))
     fresh = env.reset_states(jax.random.PRNGKey(1))
@@ -90,9 +92,11 @@ def test_time_limit_and_auto_reset(push_c):
     np.testing.assert_array_equal(after.scene.obs[np.array([0, 2])], moved.obs[np.array([0, 2])])
     np.testing.assert_allclose(res.episode_return, [0.0, moved.reward[1], 0.0])
     np.testing.assert_allclose(after.episode_return, [moved.reward[0], 0.0, moved.reward[2]])
-    # Second step: envs 0 and 2 reach the limit.
+    # Second step: envs 0 and 2 reach the limit; env 1 steps on from its fresh state.
     _, res2 = step(after, action, fresh)
     np.testing.assert_array_equal(res2.done, [True, False, True])
+    from_fresh = jax.vmap(scene.step)(fresh, action)
+    np.testing.assert_array_equal(res2.next_obs[1], from_fresh.obs[1])
 
 
 def test_reset_spreads_episode_counters(push_c):
@@ -114,8 +118,3 @@ def test_reset_spreads_episode_counters(push_c):
 def test_config_validation(kw, needle):
     with pytest.raises(ConfigError, match=needle):
         PPOConfig(**kw)
-
-
-def test_warp_is_refused_for_training(push_warp):
-    with pytest.raises(ConfigError, match="backend 'warp' shares its contact buffer"):
-        BatchedEnv(push_warp, n_envs=4, max_steps=10)

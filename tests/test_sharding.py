@@ -43,10 +43,13 @@ def test_warp_on_four_devices_equals_one_device():
 def test_two_processes_equal_one_process(tmp_path):
     """`eval --processes 2`: two processes of one job (jax.distributed over gloo on the CPU),
     2 devices each, shard the seeds over all 4 devices; process 0 alone writes the report, and
-    every episode equals a 1-device run's (warp, as above: bit-identical across layouts)."""
+    every episode equals a 1-device run's (warp, as above: bit-identical across layouts). The
+    job batches continuously (the default, with more episodes than envs: slots over both
+    processes' devices); the 1-device run in fixed chunks."""
     common = ["--backend", "warp", "--n-envs", "8", "--n-episodes", "10", "--max-steps", "60"]
     reports = {}
-    for name, extra in (("two", ["--processes", "2"]), ("one", ["--devices", "1"])):
+    one = ["--devices", "1", "--batching", "chunks"]
+    for name, extra in (("two", ["--processes", "2"]), ("one", one)):
         reports[name] = tmp_path / f"{name}.json"
         proc = run_on_cpu_devices(
             2, "-m", "openral_mjx.eval", *common, *extra, "--out", reports[name]
@@ -55,6 +58,7 @@ def test_two_processes_equal_one_process(tmp_path):
         assert proc.stdout.count("report: ") == 1  # one process prints
     two, one = (json.loads(reports[k].read_text()) for k in ("two", "one"))
     assert two["device"].endswith("x4") and one["device"].endswith("x1"), (two, one)
+    assert (two["options"]["batching"], one["options"]["batching"]) == ("refill every 1", "chunks")
     timed = {"mean_step_latency_ms", "max_step_latency_ms", "budget_violations"}  # wall clock
 
     def outcomes(report: dict) -> list[dict]:

@@ -19,7 +19,13 @@ from openral_mjx.evaluation.sequential import SequentialRule, sequential_rule
 from openral_mjx.physics import PhysicsSettings
 from openral_mjx.policies import Policy, make_policy
 from openral_mjx.report import EvalReport, SequentialInfo, TaskRow
-from openral_mjx.runner import RunTiming, check_batching, check_counts, run_seeds
+from openral_mjx.runner import (
+    RunTiming,
+    check_batching,
+    check_counts,
+    resolve_batching,
+    run_seeds,
+)
 from openral_mjx.scenes import Scene, make_scene
 from openral_mjx.stats.breakdown import breakdown
 from openral_mjx.stats.intervals import wilson_interval
@@ -139,16 +145,17 @@ def run_evaluation(
     devices: int | None = None,
     options: Mapping[str, Any] | None = None,
     command: str = "",
-    on_chunk: Callable[[int, int], None] | None = None,
+    on_chunk: Callable[[int, int, int], None] | None = None,
     step_rewards: bool = False,
-    batching: str = "chunks",
+    batching: str = "auto",
     refill_every: int = 1,
 ) -> Evaluation:
     """`evaluate`, returning the report with the scene, policy and per-seed arrays that made
     it; `step_rewards` also keeps every step's reward (`arrays["rewards"]`, for plots).
-    `batching` is `chunks` (fixed batches of `n_envs` seeds) or `refill` (continuous batching:
+    `batching` is `chunks` (fixed batches of `n_envs` seeds), `refill` (continuous batching:
     a slot whose episode ended takes the next seed, resets batched every `refill_every`
-    control steps); per seed the episodes are the same."""
+    control steps) or `auto` (`refill` where it applies: see `resolve_batching`); per seed
+    the episodes are the same."""
     rule, n_episodes = check_run(
         n_envs, n_episodes, target_halfwidth, max_episodes, max_steps, seed, factor_bins
     )
@@ -173,6 +180,9 @@ def run_evaluation(
             pol, policy = policy, policy.name
         steps = scene.max_steps if max_steps is None else max_steps
         check_batching(batching, scene.backend.name, refill_every, step_rewards)
+        batching = resolve_batching(
+            batching, scene.backend.name, n_episodes, n_envs, traces=step_rewards
+        )
         requested = np.arange(seed, seed + n_episodes, dtype=np.int64)
         params, _ = pol.init(jax.random.PRNGKey(seed), scene.observation_spec)
         arrays, timing = run_seeds(
@@ -247,6 +257,7 @@ def run_evaluation(
         breakdown=breakdown(factors, arrays["success"], factor_bins),
         env_steps_per_s=timing.env_steps / timing.run_s,
         episodes_per_s=n_episodes / timing.run_s,
+        live_env_steps_per_s=float(arrays["steps"].sum()) / timing.run_s,
         compile_s=timing.compile_s,
         run_s=timing.run_s,
         control_dt_s=scene.control_dt,

@@ -32,7 +32,7 @@ def evaluate_suite(
     options: Mapping[str, Any] | None = None,
     command: str = "",
     on_task: Callable[[int, int, str], None] | None = None,
-    on_chunk: Callable[[int, int], None] | None = None,
+    on_chunk: Callable[[int, int, int], None] | None = None,
 ) -> EvalReport:
     """Run `policy` on every task of `suite`; `on_task(i, n, task)` before each task."""
     tasks = scene_suite(scene, suite)

@@ -13,10 +13,11 @@ from typing import Any
 
 from openral_mjx.core.errors import ConfigError
 
-SCHEMA_VERSION = "openral_mjx.eval_report/3"
+SCHEMA_VERSION = "openral_mjx.eval_report/4"
 # /2 has the same fields as /3; /3 only widened what the latency fields and metadata may hold
 # (a torch policy's own latencies, a host worker's error), so a /2 report reads as it was.
-READABLE_VERSIONS = ("openral_mjx.eval_report/2", SCHEMA_VERSION)
+# /4 added `live_env_steps_per_s` (continuous batching), None when read from /2 or /3.
+READABLE_VERSIONS = ("openral_mjx.eval_report/2", "openral_mjx.eval_report/3", SCHEMA_VERSION)
 
 
 @dataclasses.dataclass
@@ -115,7 +116,9 @@ class EvalReport:
 
     `ci_method` is "wilson" for a fixed number of episodes and "sequential-exact" for a
     sequential run (see `sequential`). `breakdown` holds success per bin of each episode
-    factor the scene declares (equal-count bins).
+    factor the scene declares (equal-count bins). Throughput over `run_s`: `env_steps_per_s`
+    counts every env-step the batch simulated (finished envs waiting included),
+    `live_env_steps_per_s` only the steps of running episodes, `episodes_per_s` episodes.
     """
 
     scene: str
@@ -148,6 +151,7 @@ class EvalReport:
     created_at: str
     episodes: list[EpisodeResult]
     sequential: SequentialInfo | None = None
+    live_env_steps_per_s: float | None = None
     schema_version: str = SCHEMA_VERSION
 
     def summary(self) -> str:

@@ -27,7 +27,13 @@ from openral_mjx.runner.episode import (
     seed_keys,
 )
 from openral_mjx.runner.factors import make_factor_fn
-from openral_mjx.runner.refill import BATCHING, RefillRunner, check_batching, finished_prefix
+from openral_mjx.runner.refill import (
+    BATCHING,
+    RefillRunner,
+    check_batching,
+    finished_prefix,
+    resolve_batching,
+)
 from openral_mjx.runner.seeds import make_runner, run_seeds
 from openral_mjx.runner.trace import trace_seeds
 
@@ -48,6 +54,7 @@ __all__ = [
     "make_runner",
     "make_trace_fn",
     "outcome_arrays",
+    "resolve_batching",
     "run_seeds",
     "seed_chunks",
     "seed_keys",

@@ -48,7 +48,8 @@ class RunTiming:
     shrunk to fit device memory); `bytes_per_device` is XLA's estimate of the compiled
     episode's peak memory on one device (None where the backend cannot say). A run in chunks
     took `scan_steps` control steps per chunk (`chunk_s` each); a continuously batched run
-    (`refill`) took `batch_steps` control steps in all, timed in segments (`chunk_s`).
+    (`refill`) took `batch_steps` control steps in all, timed in segments (`chunk_s`), and
+    simulated `simulated_steps` env-steps (its batch shrinks as it drains).
     """
 
     compile_s: float
@@ -59,11 +60,14 @@ class RunTiming:
     n_devices: int = 1
     bytes_per_device: int | None = None
     batch_steps: int | None = None
+    simulated_steps: int | None = None
 
     @property
     def env_steps(self) -> int:
         """Env-steps the batch simulated, padding and finished envs included: the machine's
         work, not the episodes' length."""
+        if self.simulated_steps is not None:
+            return self.simulated_steps
         steps = (
             len(self.chunk_s) * self.scan_steps if self.batch_steps is None else self.batch_steps
         )
@@ -231,7 +235,7 @@ class EpisodeRunner:
         self,
         params: Any,
         seeds: np.ndarray,
-        on_chunk: Callable[[int, int], None] | None = None,
+        on_chunk: Callable[[int, int, int], None] | None = None,
         until: Callable[[dict[str, Any]], bool] | None = None,
     ) -> tuple[dict[str, Any], RunTiming]:
         """Roll out every seed; return per-seed numpy arrays and timings (`compile_s` is 0 once
@@ -241,7 +245,8 @@ class EpisodeRunner:
         scene declares (see `make_factor_fn`) its values under `FACTOR_PREFIX + name`, and the
         recorded traces as `(n_seeds, max_steps, ...)`.
 
-        `on_chunk(done_episodes, total_episodes)` is called once compiled and after each chunk.
+        `on_chunk(done_episodes, total_episodes, successes)` is called once compiled and after
+        each chunk (`successes` among the `done_episodes` first seeds: a running rate).
         `until(arrays_so_far)`, if given, is called after each chunk; when it returns True no
         further chunk runs and only the seeds run so far are returned. The chunk size is fixed
         before any episode runs (it depends on the devices and memory, never on outcomes).
@@ -254,7 +259,8 @@ class EpisodeRunner:
         chunks = seed_chunks(seeds, n_envs)
         n_chunks = len(chunks)
         if on_chunk is not None:
-            on_chunk(0, len(seeds))
+            on_chunk(0, len(seeds), 0)
+        successes = 0
 
         outs: list[dict[str, Any]] = []
         chunk_s: list[float] = []
@@ -271,8 +277,9 @@ class EpisodeRunner:
             row.update({k: np.swapaxes(np.asarray(v), 0, 1) for k, v in traces.items()})
             outs.append(row)
             done = min((c + 1) * n_envs, len(seeds))
+            successes += int(row["success"][: done - c * n_envs].sum())
             if on_chunk is not None:
-                on_chunk(done, len(seeds))
+                on_chunk(done, len(seeds), successes)
             if until is not None or c == n_chunks - 1:
                 merged = {k: np.concatenate([o[k] for o in outs])[:done] for k in outs[0]}
                 if until is not None and until(merged):

@@ -48,24 +48,40 @@ from openral_mjx.runner.episode import (
 )
 from openral_mjx.scenes.base import Scene, State
 
-BATCHING = ("chunks", "refill")
+BATCHING = ("auto", "chunks", "refill")
+REFILL_BACKENDS = ("mjx", "warp", "c")
 
 
 def check_batching(
     batching: str, backend: str, refill_every: int = 1, traces: bool = False
 ) -> None:
-    """Reject a batching mode the run cannot use, before anything is built (`ConfigError`)."""
+    """Reject a batching mode the run cannot use, before anything is built (`ConfigError`).
+    `auto` is always valid (see `resolve_batching`)."""
     if batching not in BATCHING:
         raise unknown("batching", batching, BATCHING)
     if refill_every < 1:
         raise ConfigError(f"refill_every must be a positive integer, got {refill_every}")
-    if batching == "refill" and backend not in ("mjx", "warp", "c"):
+    if batching == "refill" and backend not in REFILL_BACKENDS:
         raise ConfigError(
             f"batching 'refill' resets single envs in place, which backend {backend!r} cannot "
             "(a host scene's envs live in its workers): use batching 'chunks'"
         )
     if batching == "refill" and traces:
         raise ConfigError("per-step traces (reward curves for plots) need batching 'chunks'")
+
+
+def resolve_batching(
+    batching: str, backend: str, n_seeds: int | None, n_envs: int, traces: bool = False
+) -> str:
+    """`chunks` or `refill` for the run: `auto` is `refill` where it pays and applies (more
+    seeds than envs, or a seed count not known yet; on mjx, warp or c, without per-step
+    traces), else `chunks`."""
+    check_batching(batching, backend, traces=traces)
+    if batching != "auto":
+        return batching
+    more = n_seeds is None or n_seeds > n_envs
+    applies = backend in REFILL_BACKENDS and not traces and more
+    return "refill" if applies else "chunks"
 
 
 @struct.dataclass
@@ -93,7 +109,7 @@ class RefillCarry:
     steps: jax.Array  # (1,) int32: control steps the batch has taken
 
 
-def _where(mask: jax.Array, a: Any, b: Any, per_env: Any = None) -> Any:
+def where_per_env(mask: jax.Array, a: Any, b: Any, per_env: Any = None) -> Any:
     """Per slot (leading axis): `a` where `mask`, else `b`, leaf by leaf. Where `per_env` (a
     tree of bools like `a`) says a leaf has no slot axis, it is a buffer the whole batch
     shares (warp's contact buffer): it comes from `b`, and the next step rebuilds it."""
@@ -125,9 +141,11 @@ def per_env_leaves(scene: Scene) -> Any:
 def make_refill_fns(
     scene: Scene, policy: Policy, max_steps: int, n_slots: int, refill_every: int = 1
 ) -> tuple[Callable[[Any, jax.Array], RefillCarry], Callable[..., RefillCarry]]:
-    """`start(params, seeds[n]) -> carry` and `advance(params, carry, seeds[n], budget[1]) ->
-    carry` (jit both): `advance` runs control steps until every seed has finished or `budget`
-    more steps have run. `n_slots <= n` envs run at once."""
+    """`start(params, seeds[n]) -> carry` and `advance(params, carry, seeds[n], budget[1],
+    shrink_at[1]) -> carry` (jit both): `advance` runs control steps until every seed has
+    finished, `budget` more steps have run, or every seed has a slot and at most `shrink_at`
+    slots are still running (the batch has drained enough to `shrink`; -1: never). `n_slots
+    <= n` envs run at once at the start; `advance` runs any slot count."""
 
     budget_ms = 1000.0 * scene.control_dt
     state_per_env = per_env_leaves(scene)
@@ -167,8 +185,8 @@ def make_refill_fns(
         rows = carry.next_seed[0] + jnp.cumsum(want) - 1
         take = want & (rows < n)
         new = fresh(seeds, jnp.where(take, rows, 0))
-        slots = _where(take, new.replace(state=None), s.replace(state=None))
-        slots = slots.replace(state=_where(take, new.state, s.state, state_per_env))
+        slots = where_per_env(take, new.replace(state=None), s.replace(state=None))
+        slots = slots.replace(state=where_per_env(take, new.state, s.state, state_per_env))
         slots = slots.replace(
             seed_index=jnp.where(want & ~take, n, slots.seed_index),
         )
@@ -207,16 +225,47 @@ def make_refill_fns(
         return jax.lax.cond(due, refill, lambda c, _: c, carry, seeds)
 
     def advance(
-        params: Any, carry: RefillCarry, seeds: jax.Array, budget: jax.Array
+        params: Any, carry: RefillCarry, seeds: jax.Array, budget: jax.Array, shrink_at: jax.Array
     ) -> RefillCarry:
         stop_at = carry.steps[0] + budget[0]
 
         def going(c: RefillCarry) -> jax.Array:
-            return ~jnp.all(c.finished) & (c.steps[0] < stop_at)
+            drained = (c.next_seed[0] >= seeds.shape[0]) & (jnp.sum(~c.slots.ended) <= shrink_at[0])
+            return ~jnp.all(c.finished) & (c.steps[0] < stop_at) & ~drained
 
         return jax.lax.while_loop(going, lambda c: step(params, c, seeds), carry)
 
     return start, advance
+
+
+def make_shrink_fn(scene: Scene, n_out: int) -> Callable[[RefillCarry], RefillCarry]:
+    """`shrink(carry) -> carry` with `n_out` slots: the slots still running (at most `n_out`;
+    `advance`'s `shrink_at` guarantees it) move, unchanged, into a smaller batch, so the drain
+    at the end of a run does not simulate a full batch of idle slots. Leaves the batch shares
+    (warp's contact buffer, sized for the largest batch) stay as they are."""
+    state_per_env = per_env_leaves(scene)
+
+    def shrink(carry: RefillCarry) -> RefillCarry:
+        s = carry.slots
+        keep = jnp.argsort(s.ended, stable=True)[:n_out]  # running slots first, in slot order
+
+        def take(x: jax.Array, batched: bool = True) -> jax.Array:
+            return x[keep] if batched else x
+
+        slots = jax.tree.map(take, s.replace(state=None))
+        return carry.replace(slots=slots.replace(state=jax.tree.map(take, s.state, state_per_env)))
+
+    return shrink
+
+
+def shrink_sizes(n_slots: int, levels: int, min_slots: int) -> list[int]:
+    """The slot counts a drained batch of `n_slots` shrinks to, in turn: halving, at most
+    `levels` times, never below `min_slots` nor two (see `envs_per_device`: a batch of one
+    compiles to code that may round differently)."""
+    sizes: list[int] = []
+    while len(sizes) < levels and (sizes[-1] if sizes else n_slots) // 2 >= max(min_slots, 2):
+        sizes.append((sizes[-1] if sizes else n_slots) // 2)
+    return sizes
 
 
 def finished_prefix(finished: np.ndarray) -> int:
@@ -243,6 +292,11 @@ class RefillRunner(EpisodeRunner):
     (default: one episode length) to report progress and let `until` look at the finished
     prefix of seeds at sizes `n_envs`, `2 n_envs`, ... fixed before the run (as the chunked
     runner's looks). Refilling every `refill_every` control steps batches the resets.
+
+    Once every seed has a slot, the batch drains: whenever at most half of a device's slots
+    still run, the running ones move into a batch half the size (`shrink_levels` times at
+    most, never below `min_slots` per device), so the tail of the run does not step idle
+    slots. Each size compiles once, when first reached (counted in `compile_s`, not `run_s`).
     """
 
     def __init__(
@@ -254,12 +308,17 @@ class RefillRunner(EpisodeRunner):
         max_steps: int,
         refill_every: int = 1,
         segment_steps: int | None = None,
+        shrink_levels: int = 3,
+        min_slots: int = 1024,
         memory_fraction: float = 0.85,
         devices: Sequence[jax.Device] | None = None,
     ) -> None:
         check_batching("refill", scene.backend.name, refill_every)
-        if segment_steps is not None and segment_steps < 1:
-            raise ConfigError(f"segment_steps must be a positive integer, got {segment_steps}")
+        for name, value in (("segment_steps", segment_steps), ("min_slots", min_slots)):
+            if value is not None and value < 1:
+                raise ConfigError(f"{name} must be a positive integer, got {value}")
+        if shrink_levels < 0:
+            raise ConfigError(f"shrink_levels must be >= 0, got {shrink_levels}")
         super().__init__(
             scene,
             policy,
@@ -270,9 +329,25 @@ class RefillRunner(EpisodeRunner):
         )
         self.refill_every = refill_every
         self.segment_steps = segment_steps or max_steps
+        self.shrink_levels, self.min_slots = shrink_levels, min_slots
         self._slots = self.per_device  # as asked; a run with fewer seeds per device uses fewer
         self._seeds_per_device = 0
         self._start: Program | None = None
+        self._advance: dict[int, Program] = {}  # slots per device -> compiled `advance`
+        self._shrink: dict[int, Program] = {}  # slots per device after -> compiled `shrink`
+
+    def _lower_with(self, program: str, slots: int) -> Callable:
+        policy = self.policy
+        return lambda fn, local_args: self._lower(
+            program,
+            fn,
+            local_args,
+            cacheable=policy.cache_key is not None,
+            policy=policy.cache_key,
+            max_steps=self.max_steps,
+            slots=slots,
+            refill_every=self.refill_every,
+        )
 
     def _lower_compile(self, params: Any) -> Program:
         """Compile `start` and `advance` for `per_device` slots and the current seed count;
@@ -280,38 +355,43 @@ class RefillRunner(EpisodeRunner):
         start, advance = make_refill_fns(
             self.scene, self.policy, self.max_steps, self.per_device, self.refill_every
         )
+        self._advance_fn = self.layout.per_device(advance)
         n_dev = len(self.layout.devices)
         seeds = self.layout.put_envs(np.zeros(self._seeds_per_device * n_dev, np.int32))
-        budget = self.layout.put_envs(np.ones(n_dev, np.int32))
-        policy = self.policy
-
-        def lower(program: str) -> Callable:
-            return lambda fn, local_args: self._lower(
-                program,
-                fn,
-                local_args,
-                cacheable=policy.cache_key is not None,
-                policy=policy.cache_key,
-                max_steps=self.max_steps,
-                slots=self.per_device,
-                refill_every=self.refill_every,
-            )
-
-        self._start = self.layout.per_device(start).compile((params, seeds), lower("refill-start"))
-        carry = self._start(params, seeds)
-        return self.layout.per_device(advance).compile(
-            (params, carry, seeds, budget), lower("refill-advance")
+        self._start = self.layout.per_device(start).compile(
+            (params, seeds), self._lower_with("refill-start", self.per_device)
         )
+        carry = self._start(params, seeds)
+        self._advance, self._shrink = {}, {}
+        return self._compile_advance(params, carry, seeds)
+
+    def _compile_advance(self, params: Any, carry: RefillCarry, seeds: jax.Array) -> Program:
+        """`advance` for the slot count of `carry` (compiled once per count)."""
+        slots = carry.slots.t.shape[0] // len(self.layout.devices)
+        if slots not in self._advance:
+            one = self.layout.put_envs(np.ones(len(self.layout.devices), np.int32))
+            self._advance[slots] = self._advance_fn.compile(
+                (params, carry, seeds, one, one), self._lower_with("refill-advance", slots)
+            )
+        return self._advance[slots]
+
+    def _shrunk(self, carry: RefillCarry, n_out: int) -> RefillCarry:
+        """`carry` with `n_out` slots per device (see `make_shrink_fn`)."""
+        if n_out not in self._shrink:
+            fn = self.layout.per_device(make_shrink_fn(self.scene, n_out))
+            self._shrink[n_out] = fn.compile((carry,), self._lower_with("refill-shrink", n_out))
+        return self._shrink[n_out](carry)
 
     def run(
         self,
         params: Any,
         seeds: np.ndarray,
-        on_chunk: Callable[[int, int], None] | None = None,
+        on_chunk: Callable[[int, int, int], None] | None = None,
         until: Callable[[dict[str, Any]], bool] | None = None,
     ) -> tuple[dict[str, Any], RunTiming]:
-        """Roll out every seed, as `EpisodeRunner.run` (same arrays); `on_chunk(done, total)`
-        reports the finished prefix after each segment, and `until` sees the outcomes of the
+        """Roll out every seed, as `EpisodeRunner.run` (same arrays); `on_chunk(done, total,
+        successes)` reports the finished prefix of seeds (`done` seeds, `successes` among them)
+        after each segment, never whatever else has finished; `until` sees the outcomes of the
         first `n_envs`, `2 n_envs`, ... seeds once all of them have finished (the episode
         factors are added afterwards, for the seeds the run keeps)."""
         seeds = self._checked(seeds)
@@ -330,21 +410,34 @@ class RefillRunner(EpisodeRunner):
         device_seeds = layout.put_envs(padded[order])
         budget = layout.put_envs(np.full(n_dev, self.segment_steps, np.int32))
         looks = [*range(self.n_envs, n, self.n_envs), n]
+        sizes = shrink_sizes(self.per_device, self.shrink_levels, self.min_slots)
         if on_chunk is not None:
-            on_chunk(0, n)
+            on_chunk(0, n, 0)
         assert self._start is not None
         t0 = time.perf_counter()
         carry = self._start(params, device_seeds)
+        advance, slots = self._compiled, self.per_device
         segment_s: list[float] = []
-        done = 0
+        done, slot_steps, steps_before = 0, 0, np.zeros(n_dev, np.int64)
         while True:
             t = time.perf_counter()
-            carry = self._compiled(params, carry, device_seeds, budget)
+            shrink_at = sizes[0] if sizes else -1
+            carry = advance(
+                params,
+                carry,
+                device_seeds,
+                budget,
+                layout.put_envs(np.full(n_dev, shrink_at, np.int32)),
+            )
             finished = np.asarray(layout.get(carry.finished))[rows_of][:n]
             segment_s.append(time.perf_counter() - t)
+            steps = np.asarray(layout.get(carry.steps), np.int64)
+            slot_steps += int((steps - steps_before).sum()) * slots
+            steps_before = steps
             prefix = finished_prefix(finished)
             if on_chunk is not None:
-                on_chunk(prefix, n)
+                success = np.asarray(layout.get(carry.results.success))[rows_of][:prefix]
+                on_chunk(prefix, n, int(success.sum()))
             stop = False
             while until is not None and looks and looks[0] <= prefix:
                 done = looks.pop(0)
@@ -354,6 +447,15 @@ class RefillRunner(EpisodeRunner):
             if stop or prefix == n:
                 done = done if stop else n
                 break
+            if sizes and self._drained(carry, per_dev, sizes[0]):
+                t = time.perf_counter()
+                carry = self._shrunk(carry, sizes[0])
+                jax.block_until_ready(carry)
+                slots = sizes.pop(0)
+                advance = self._compile_advance(params, carry, device_seeds)
+                spent = time.perf_counter() - t
+                t0 += spent  # compiling is not running: it goes to compile_s
+                compile_s += spent
         run_s = time.perf_counter() - t0
         arrays = self._outcomes(carry, rows_of, done)
         if self._factor_fn is not None:
@@ -363,7 +465,6 @@ class RefillRunner(EpisodeRunner):
                 arrays[FACTOR_PREFIX + k] = np.concatenate([np.asarray(v[k]) for v in values])[
                     :done
                 ]
-        steps = np.asarray(layout.get(carry.steps))
         timing = RunTiming(
             compile_s=compile_s,
             run_s=run_s,
@@ -373,8 +474,16 @@ class RefillRunner(EpisodeRunner):
             n_devices=n_dev,
             bytes_per_device=self._need,
             batch_steps=round(float(steps.mean())),
+            simulated_steps=slot_steps,
         )
         return arrays, timing
+
+    def _drained(self, carry: RefillCarry, seeds_per_device: int, n_out: int) -> bool:
+        """Whether every seed has a slot and at most `n_out` slots run on every device."""
+        n_dev = len(self.layout.devices)
+        assigned = np.asarray(self.layout.get(carry.next_seed)) >= seeds_per_device
+        running = (~np.asarray(self.layout.get(carry.slots.ended))).reshape(n_dev, -1).sum(1)
+        return bool(assigned.all() and (running <= n_out).all())
 
     def _outcomes(self, carry: RefillCarry, rows_of: np.ndarray, n: int) -> dict[str, Any]:
         """The first `n` seeds' outcomes by field name (see `outcome_arrays`)."""

@@ -15,7 +15,7 @@ import numpy as np
 
 from openral_mjx.policies.base import Policy
 from openral_mjx.runner.chunks import EpisodeRunner, RunTiming, check_counts
-from openral_mjx.runner.refill import RefillRunner, check_batching
+from openral_mjx.runner.refill import RefillRunner, check_batching, resolve_batching
 from openral_mjx.scenes.base import Scene
 
 
@@ -31,9 +31,11 @@ def make_runner(
     memory_fraction: float = 0.85,
     devices: Sequence[jax.Device] | None = None,
 ) -> EpisodeRunner:
-    """The runner for `batching` (`chunks` or `refill`); traces (`record`) need `chunks`."""
+    """The runner for `batching` (`chunks`, `refill`, or `auto`: `refill` where it applies);
+    traces (`record`) need `chunks`."""
     check_batching(batching, scene.backend.name, refill_every, traces=bool(record))
-    if batching == "chunks":
+    backend = scene.backend.name
+    if resolve_batching(batching, backend, None, n_envs, traces=bool(record)) == "chunks":
         return EpisodeRunner(
             scene,
             policy,
@@ -62,7 +64,7 @@ def run_seeds(
     seeds: np.ndarray,
     n_envs: int,
     max_steps: int,
-    on_chunk: Callable[[int, int], None] | None = None,
+    on_chunk: Callable[[int, int, int], None] | None = None,
     record: tuple[str, ...] = (),
     memory_fraction: float = 0.85,
     devices: Sequence[jax.Device] | None = None,
@@ -71,14 +73,17 @@ def run_seeds(
     refill_every: int = 1,
 ) -> tuple[dict[str, Any], RunTiming]:
     """Roll out every seed once with `min(n_envs, len(seeds))` envs at a time (see
-    `EpisodeRunner` and `RefillRunner`)."""
+    `EpisodeRunner` and `RefillRunner`; `auto` batching: see `resolve_batching`)."""
     check_counts(n_envs, len(seeds), max_steps)
+    check_batching(batching, scene.backend.name, refill_every, traces=bool(record))
     runner = make_runner(
         scene,
         policy,
         n_envs=min(n_envs, len(seeds)),
         max_steps=max_steps,
-        batching=batching,
+        batching=resolve_batching(
+            batching, scene.backend.name, len(seeds), n_envs, traces=bool(record)
+        ),
         refill_every=refill_every,
         record=record,
         memory_fraction=memory_fraction,

@@ -70,7 +70,7 @@ def collect_demos(
     max_steps: int,
     first_seed: int = 0,
     successful_only: bool = True,
-    on_chunk: Callable[[int, int], None] | None = None,
+    on_chunk: Callable[[int, int, int], None] | None = None,
 ) -> Demos:
     """Roll out the scene's scripted expert on seeds `first_seed ..` and keep its live steps."""
     seeds = np.arange(first_seed, first_seed + n_episodes, dtype=np.int64)

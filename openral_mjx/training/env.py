@@ -15,7 +15,7 @@ import jax
 import jax.numpy as jnp
 from flax import struct
 
-from openral_mjx.core.errors import ConfigError
+from openral_mjx.runner.refill import per_env_leaves, where_per_env
 from openral_mjx.scenes.base import Scene, State
 
 
@@ -40,30 +40,17 @@ class StepResult:
     episode_return: jax.Array  # return of the episode that ended here (0 where not done)
 
 
-def _where(mask: jax.Array, a: State, b: State) -> State:
-    """Per env (leading axis): `a` where `mask`, else `b`, leaf by leaf."""
-
-    def pick(x: jax.Array, y: jax.Array) -> jax.Array:
-        return jnp.where(mask.reshape(mask.shape + (1,) * (x.ndim - 1)), x, y)
-
-    return jax.tree.map(pick, a, b)
-
-
 class BatchedEnv:
     """`n_envs` copies of `scene` with a `max_steps` time limit and auto-reset.
 
-    Resetting single envs in place replaces their slice of every state leaf, so the backend's
-    state must be per env: `mjx` and `c`. Warp keeps one contact buffer for the whole batch, so
-    it is refused here (evaluation on `warp` is unaffected).
+    Resetting single envs in place replaces their slice of every per-env state leaf; a leaf
+    the batch shares (warp's contact buffer) stays, and the next step rebuilds it, as in the
+    evaluator's continuous batching (`runner.refill`).
     """
 
     def __init__(self, scene: Scene, n_envs: int, max_steps: int) -> None:
-        if scene.backend.name == "warp":
-            raise ConfigError(
-                "training needs per-env physics states to reset envs one by one; backend "
-                "'warp' shares its contact buffer across the batch: use --backend mjx (or c)"
-            )
         self.scene, self.n_envs, self.max_steps = scene, n_envs, max_steps
+        self._per_env = per_env_leaves(scene)
 
     def reset_states(self, key: jax.Array) -> State:
         """`n_envs` fresh episodes from independent keys split off `key`."""
@@ -93,7 +80,7 @@ class BatchedEnv:
             episode_return=jnp.where(done, ret, 0.0),
         )
         env = EnvState(
-            scene=_where(done, fresh, new),
+            scene=where_per_env(done, fresh, new, self._per_env),
             t=jnp.where(done, 0, t),
             episode_return=jnp.where(done, 0.0, ret),
         )

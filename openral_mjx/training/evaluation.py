@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 
 from openral_mjx.policies.mlp import MlpConfig, mlp_policy
-from openral_mjx.runner import EpisodeRunner
+from openral_mjx.runner import make_runner, resolve_batching
 from openral_mjx.scenes.base import Scene
 from openral_mjx.stats import wilson_interval
 
@@ -51,8 +51,13 @@ class HeldOutEvaluator:
         first_seed: int = VALIDATION_SEEDS,
     ) -> None:
         self.seeds = np.arange(first_seed, first_seed + n_episodes, dtype=np.int64)
-        self.runner = EpisodeRunner(
-            scene, mlp_policy(config), n_envs=min(n_envs, n_episodes), max_steps=max_steps
+        n_envs = min(n_envs, n_episodes)
+        self.runner = make_runner(
+            scene,
+            mlp_policy(config),
+            n_envs=n_envs,
+            max_steps=max_steps,
+            batching=resolve_batching("auto", scene.backend.name, n_episodes, n_envs),
         )
 
     def __call__(self, params: Any) -> EvalResult:

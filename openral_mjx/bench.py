@@ -1,7 +1,9 @@
 """`python -m openral_mjx.bench`: evaluator throughput against raw physics ceilings, one run
-(`--rays`: the ray-cast sensors against raw `mjx.ray` and `mj_multiRay`).
+(`--rays`: the ray-cast sensors against raw `mjx.ray` and `mj_multiRay`; `--batching`:
+continuous batching against fixed chunks in episodes/s).
 
-What is measured and how: `openral_mjx.perf.throughput` and `openral_mjx.perf.rays`. Ratios
+What is measured and how: `openral_mjx.perf.throughput`, `openral_mjx.perf.rays` and
+`openral_mjx.perf.batching`. Ratios
 (evaluator / raw, evaluator / C) are what transfers between machines; absolute numbers count
 only with the device named. Prints a table and writes JSON (`--out`).
 """
@@ -19,10 +21,12 @@ from openral_mjx.cli.common import command_line, guarded
 from openral_mjx.core.errors import ConfigError
 from openral_mjx.core.files import write_json_atomic
 from openral_mjx.evaluation.provenance import device_description, package_versions
+from openral_mjx.perf.batching import compare_batching
 from openral_mjx.perf.rays import run_rays
 from openral_mjx.perf.throughput import measure_throughput
 from openral_mjx.physics import PhysicsSettings, resolve_backend_name
 from openral_mjx.physics.c_backend import default_threads
+from openral_mjx.runner import check_batching
 from openral_mjx.runner.compile_cache import enable_compilation_cache
 from openral_mjx.scenes import make_scene
 
@@ -59,6 +63,19 @@ class BenchArgs:
     """--rays: scene sizes (geoms) of the cost-versus-geom-count sweep."""
     repeats: int = 5
     """--rays: timed calls per measurement (median)."""
+    batching: bool = False
+    """Measure continuous batching (refill) against fixed chunks at each --n: episodes/s,
+    simulated and live env-steps/s, and the paired agreement of their outcomes (see
+    openral_mjx/perf/batching.py)."""
+    episodes: int = 65536
+    """--batching: seeds per run."""
+    chunk_episodes: int | None = None
+    """--batching: seeds of the chunked reference (a multiple of every --n; default
+    --episodes): chunks do the same work whatever the outcomes, so fewer give its rate."""
+    refill_every: int = 1
+    """--batching: control steps between batched resets."""
+    policy: str = "scripted"
+    """--batching: the policy evaluated."""
 
 
 def run_rays_bench(args: BenchArgs) -> int:
@@ -103,9 +120,60 @@ def run_rays_bench(args: BenchArgs) -> int:
     return 0
 
 
+def run_batching_bench(args: BenchArgs) -> int:
+    """`--batching`: refill against chunks in episodes/s (perf.batching)."""
+    backend = resolve_backend_name(args.backend)
+    check_batching("refill", backend, args.refill_every)
+    if not args.n or min(args.n) < 1 or args.episodes < max(args.n):
+        raise ConfigError(f"--n must be positive and at most --episodes, got {args.n}")
+    if args.compile_cache:
+        enable_compilation_cache()
+    settings = PhysicsSettings(
+        threads=args.threads or default_threads(),
+        batch_size=max(args.n),
+        contacts_per_env=args.contacts_per_env,
+    )
+    scene = make_scene(args.scene, backend=backend, settings=settings)
+    rows = compare_batching(
+        scene,
+        args.policy,
+        args.n,
+        args.episodes,
+        chunk_episodes=args.chunk_episodes,
+        refill_every=args.refill_every,
+        max_steps=args.max_steps,
+        log=lambda line: print(line, flush=True),
+    )
+    argv = ["--batching", "--scene", args.scene, "--backend", backend, "--policy", args.policy]
+    argv += ["--n", *map(str, args.n), "--episodes", str(args.episodes)]
+    if args.chunk_episodes is not None:
+        argv += ["--chunk-episodes", str(args.chunk_episodes)]
+    if args.refill_every != 1:
+        argv += ["--refill-every", str(args.refill_every)]
+    if args.max_steps is not None:
+        argv += ["--max-steps", str(args.max_steps)]
+    write_json_atomic(
+        args.out,
+        {
+            "scene": args.scene,
+            "backend": backend,
+            "device": device_description(scene),
+            "policy": args.policy,
+            "rows": rows,
+            "versions": package_versions(),
+            "created_at": dt.datetime.now(dt.UTC).isoformat(timespec="seconds"),
+            "command": command_line("openral_mjx.bench", argv),
+        },
+    )
+    print(f"results: {args.out}")
+    return 0
+
+
 def run(args: BenchArgs) -> int:
     if args.rays:
         return run_rays_bench(args)
+    if args.batching:
+        return run_batching_bench(args)
     backend = resolve_backend_name(args.backend)
     if not args.n or min(args.n) < 1 or (args.max_steps is not None and args.max_steps < 1):
         raise ConfigError(

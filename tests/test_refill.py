@@ -9,7 +9,7 @@ import pytest
 from openral_mjx.core.errors import ConfigError
 from openral_mjx.policies import make_policy
 from openral_mjx.runner import finished_prefix, run_seeds
-from openral_mjx.runner.refill import device_order
+from openral_mjx.runner.refill import RefillRunner, device_order, shrink_sizes
 
 STEPS = 100
 SEEDS = np.arange(40, 55)  # 15 seeds: some succeed early, some run out of time
@@ -51,6 +51,32 @@ def test_every_seed_gives_the_chunked_episode_bit_for_bit(push_c, chunked, n_env
         assert timing.env_steps < chunk_timing.env_steps
 
 
+def test_a_draining_batch_shrinks_and_keeps_every_episode(push_c, chunked):
+    """Once every seed has a slot, the running slots move into half-size batches (8 -> 4 -> 2
+    slots): the same outcomes bit for bit, and fewer env-steps simulated than at full size."""
+    policy, reference, _ = chunked
+    results = {}
+    for levels in (0, 2):
+        runner = RefillRunner(
+            push_c, policy, n_envs=8, max_steps=STEPS, shrink_levels=levels, min_slots=2
+        )
+        arrays, timing = runner.run(None, SEEDS)
+        for k in reference:
+            np.testing.assert_array_equal(arrays[k], reference[k], err_msg=k)
+        results[levels] = timing
+    assert sorted(runner._advance) == [2, 4, 8]  # the run reached both smaller sizes
+    full, shrunk = results[0], results[2]
+    assert full.env_steps == full.batch_steps * 8
+    assert arrays["steps"].sum() <= shrunk.env_steps < full.env_steps
+
+
+def test_shrink_sizes():
+    assert shrink_sizes(4096, 3, 1024) == [2048, 1024]
+    assert shrink_sizes(4096, 2, 16) == [2048, 1024]
+    assert shrink_sizes(8, 5, 1) == [4, 2]
+    assert shrink_sizes(1024, 3, 1024) == []
+
+
 def test_refill_on_warp_cpu_is_bit_identical_to_chunks(push_warp):
     """Warp shares one contact buffer across the batch: a reset slot takes the fresh state's
     per-env leaves and leaves the shared buffer to the next step's collision pass. In Warp's
@@ -61,6 +87,12 @@ def test_refill_on_warp_cpu_is_bit_identical_to_chunks(push_warp):
     reference, _ = run_seeds(push_warp, policy, None, **kw)
     assert 0 < reference["success"].sum() < len(seeds)
     arrays, _ = run_seeds(push_warp, policy, None, **kw, batching="refill", refill_every=2)
+    for k in reference:
+        np.testing.assert_array_equal(arrays[k], reference[k], err_msg=k)
+    # Shrinking the drained batch (4 -> 2 slots) keeps the shared buffer as it is.
+    runner = RefillRunner(push_warp, policy, n_envs=4, max_steps=80, min_slots=1)
+    arrays, _ = runner.run(None, seeds)
+    assert sorted(runner._advance) == [2, 4]
     for k in reference:
         np.testing.assert_array_equal(arrays[k], reference[k], err_msg=k)
 
@@ -96,7 +128,7 @@ def test_until_sees_fixed_prefixes_only(push_c, chunked):
 
 def test_refill_is_refused_where_envs_cannot_reset_alone(push_c):
     policy = make_policy("scripted", push_c)
-    with pytest.raises(ConfigError, match="unknown batching 'bogus'; valid: chunks, refill"):
+    with pytest.raises(ConfigError, match="unknown batching 'bogus'; valid: auto, chunks, refill"):
         run_seeds(push_c, policy, None, seeds=SEEDS, n_envs=5, max_steps=3, batching="bogus")
     with pytest.raises(ConfigError, match="need batching 'chunks'"):
         run_seeds(
@@ -161,3 +193,29 @@ def test_prefix_rule_is_unbiased_where_whatever_finished_is_not():
     se = 0.5 / np.sqrt(k * len(prefix))  # standard error of the mean of the prefix estimates
     assert np.mean(naive) > p + 0.1  # whatever finished first: mostly the quick successes
     assert abs(np.mean(prefix) - p) < 4 * se
+
+
+def test_bench_batching_measures_both_runners_on_the_same_seeds(monkeypatch, capsys, tmp_path):
+    """`bench --batching` on `c`: the chunked reference over the first 8 seeds, refill over
+    all 12; on `c` both give every common seed the same outcome (no discordant pair), and
+    refill simulates fewer idle steps."""
+    import json
+    import sys
+
+    from openral_mjx import bench
+
+    out = tmp_path / "b.json"
+    argv = ["bench", "--batching", "--backend", "c", "--n", "4", "--episodes", "12"]
+    argv += ["--chunk-episodes", "8", "--max-steps", "60", "--threads", "1", "--out", str(out)]
+    monkeypatch.setattr(sys, "argv", argv)
+    with pytest.raises(SystemExit) as exc:
+        bench.main()
+    assert exc.value.code == 0, capsys.readouterr().err
+    (row,) = json.loads(out.read_text())["rows"]
+    chunks, refill = row["chunks"], row["refill"]
+    assert (chunks["n_episodes"], refill["n_episodes"]) == (8, 12)
+    assert chunks["simulated_env_steps"] == 2 * 4 * 60  # two chunks of 4 envs x 60 steps
+    assert row["paired"]["only_chunks"] == row["paired"]["only_refill"] == 0
+    assert refill["live_share"] > chunks["live_share"]
+    assert row["speedup"] == pytest.approx(refill["episodes_per_s"] / chunks["episodes_per_s"])
+    assert "--chunk-episodes 8" in json.loads(out.read_text())["command"]

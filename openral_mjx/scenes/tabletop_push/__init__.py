@@ -1,6 +1,7 @@
 """`tabletop_push`: push a cube to a goal disc on a table, with any position-controlled arm.
 
-The robot (a registered one, or a user MJCF with position actuators and an end-effector site)
+The robot (a registered one, or a user MJCF with position servos and an end-effector site, as
+published: it starts at its `home` keyframe and its base is placed within its measured reach)
 is loaded into an `MjSpec`; table, cube (freejoint), goal disc, floor, light and cameras are
 appended. Reset samples the cube pose and a goal at a random bearing and distance from it.
 
@@ -22,9 +23,11 @@ to goal in the table plane, m), `cube_x`, `cube_y` (initial cube position, m), a
 `push_face_angle` (rad, in [0, pi/4]): the angle between the cube->goal direction and the
 nearest cube face normal; 0 is a push square onto a face, pi/4 onto an edge.
 
-Parts: `options` (the typed options, robot choice), `model` (MjSpec composition: `compose`),
-`task` (reset sampling, success predicate, reward, episode factors as pure JAX), `observation`
-(layout and assembly), `scene` (the `TabletopPush` scene wiring them to a physics backend).
+Parts: `options` (the typed options, robot choice), `arm` (what is measured on the robot when
+the scene is built: start pose, servos held still, integrator, tool size, reach, base
+placement), `model` (MjSpec composition: `compose`), `task` (reset sampling, success predicate,
+reward, episode factors as pure JAX), `observation` (layout and assembly), `scene` (the
+`TabletopPush` scene wiring them to a physics backend).
 """
 
 from openral_mjx.scenes.tabletop_push.model import compose

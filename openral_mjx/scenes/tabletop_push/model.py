@@ -1,36 +1,47 @@
 """`tabletop_push` model: the MjSpec of the robot on a table with a cube, a goal disc, cameras.
 
-Composition only (no task logic): the robot re-anchored on the table top, table, floor, the
-free cube, the goal site (moved per episode by the renderer, see `TabletopPush.pose_frame`),
-light and cameras, with their contact bits.
+Composition only (no task logic): the robot re-anchored on the table top where `arm.prepare`
+placed it, its colliding cylinders as prisms (`cylinders_as_prisms`: MJX has no cylinder-box
+pair), table, floor, the free cube, the goal site (moved per episode by the renderer, see
+`TabletopPush.pose_frame`), light and cameras, with their contact bits.
 """
 
 from __future__ import annotations
 
-import math
-
 import mujoco
 
 from openral_mjx.robots import RobotSpec
-from openral_mjx.scenes.composition import load_robot, look_at_quat
+from openral_mjx.scenes.composition import cylinders_as_prisms, load_robot, look_at_quat
+from openral_mjx.scenes.tabletop_push.arm import ArmSetup, place_root, prepare, root_quat
 from openral_mjx.scenes.tabletop_push.options import TabletopPushOptions
 
 
-def compose(options: TabletopPushOptions, robot: RobotSpec) -> mujoco.MjSpec:
-    """The scene's MjSpec: the robot re-anchored on the table, plus table, cube, goal, cameras."""
+def compose(
+    options: TabletopPushOptions, robot: RobotSpec, arm: ArmSetup | None = None
+) -> mujoco.MjSpec:
+    """The scene's MjSpec: the robot re-anchored on the table, plus table, cube, goal, cameras.
+
+    `arm`: the robot measured and placed by `arm.prepare` (done here when None).
+    """
     o = options
+    if arm is None:
+        arm = prepare(o, robot)
     spec = load_robot(robot)
+    robot_model = spec.compile()
+    cylinders_as_prisms(spec)
+    place_root(
+        spec,
+        [arm.base_x, o.robot_base_y, o.table_height],
+        root_quat(robot_model, o.robot_base_yaw),
+    )
     spec.modelname = "tabletop_push"
     spec.option.timestep = o.timestep
     spec.option.iterations = o.solver_iterations
     spec.option.ls_iterations = o.solver_ls_iterations
-    # Euler (joint damping implicit): MJX's implicitfast disagrees with MuJoCo C's on the
-    # servos' velocity gain, while Euler matches it to float32 precision.
-    spec.option.integrator = mujoco.mjtIntegrator.mjINT_EULER
-
-    root = spec.worldbody.first_body()
-    root.pos = [o.robot_base_x, o.robot_base_y, o.table_height]
-    root.quat = [math.cos(o.robot_base_yaw / 2), 0.0, 0.0, math.sin(o.robot_base_yaw / 2)]
+    # Euler (joint damping implicit) where the servos allow (see `arm.integrator`): MJX's
+    # implicitfast disagrees with MuJoCo C's on saturated servos' velocity gain, while Euler
+    # matches it to float32 precision.
+    spec.option.integrator = arm.integrator
 
     spec.add_material(name="table_wood", rgba=[0.55, 0.42, 0.3, 1])
     spec.add_material(name="floor_grey", rgba=[0.3, 0.3, 0.32, 1])

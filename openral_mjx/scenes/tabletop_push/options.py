@@ -1,8 +1,9 @@
 """`tabletop_push` options: every geometry knob and threshold, and which robot, validated once.
 
 A frozen dataclass fed from YAML (`configs/tabletop_push.yaml`) or the CLI; `__post_init__`
-rejects inverted ranges and non-positive sizes with a `ConfigError` naming them, and
-`robot_spec` resolves the robot (registered, or a user MJCF).
+rejects inverted ranges, non-positive sizes, and spawn ranges or goal regions off the table
+with a `ConfigError` naming them, and `robot_spec` resolves the robot (registered, or a user
+MJCF).
 """
 
 from __future__ import annotations
@@ -23,8 +24,12 @@ Vec3 = tuple[float, float, float]
 class TabletopPushOptions(SensorObsOptions):
     """Every geometry knob and threshold of `tabletop_push` (SI units, world frame).
 
-    The robot base sits on the table top at (`robot_base_x`, `robot_base_y`), facing
-    `robot_base_yaw` (rad); spawn ranges and the goal region are in the world frame. Sensor
+    The robot base sits on the table top at (`robot_base_x`, `robot_base_y`), turned by
+    `robot_base_yaw` (rad) about z from its MJCF orientation; `robot_base_x` None (the default)
+    places it from the arm's measured reach (0 where the arm reaches the workspace from there,
+    as the SO-101 does). The arm starts at keyframe `robot_keyframe`; None: the robot's own
+    home pose (so101), else its MJCF's `home` keyframe, else qpos0. Spawn ranges and the goal
+    region are in the world frame and must lie on the table. Sensor
     observations (`obs_*`, off by default): depth cameras `overhead` and `front`, RGB on
     `warp`, and a laser on a robot body or site (a user robot with a mobile base).
     """
@@ -32,7 +37,8 @@ class TabletopPushOptions(SensorObsOptions):
     robot: str = "so101"
     robot_mjcf: str | None = None
     ee_site: str = "ee"
-    robot_base_x: float = 0.0
+    robot_keyframe: str | None = None
+    robot_base_x: float | None = None
     robot_base_y: float = 0.0
     robot_base_yaw: float = 0.0
     table_size: Pair = (0.6, 0.7)
@@ -83,6 +89,25 @@ class TabletopPushOptions(SensorObsOptions):
         for name in ("n_substeps", "max_steps", "solver_iterations", "solver_ls_iterations"):
             check(getattr(self, name) >= 1, f"option {name}={getattr(self, name)}: must be >= 1")
         check(self.cube_friction >= 0, f"option cube_friction={self.cube_friction}: must be >= 0")
+        lo, hi = self.goal_distance
+        check(lo >= 0, f"option goal_distance={[lo, hi]}: must be >= 0")
+        check(
+            self.cube_size < min(self.table_size),
+            f"option cube_size={self.cube_size}: must be smaller than the table "
+            f"(table_size={list(self.table_size)})",
+        )
+        # Cube centres (spawned, or resting on a goal) keep the whole cube on the table top.
+        for axis, name in ((0, "x"), (1, "y")):
+            margin = self.table_size[axis] / 2 - self.cube_size / 2
+            low = round(self.table_center[axis] - margin, 6)
+            high = round(self.table_center[axis] + margin, 6)
+            for option in (f"cube_spawn_{name}", f"goal_region_{name}"):
+                lo, hi = getattr(self, option)
+                check(
+                    low <= lo and hi <= high,
+                    f"option {option}={[lo, hi]} leaves the table: cube centres must lie in "
+                    f"[{low}, {high}] (table_center, table_size, cube_size)",
+                )
 
     def robot_spec(self) -> RobotSpec:
         """The registered robot, or the user MJCF when `robot_mjcf` is set."""

@@ -1,5 +1,6 @@
 """The `TabletopPush` scene: wires the model, a physics backend, the task logic and the observation.
 
+`arm.prepare` checks and measures the robot (start pose, tool, reach, base placement),
 `compose` gives the MjSpec, `make_backend` a backend reporting the quantities the task reads;
 `reset` places the sampled cube (the goal goes in `State.info`), `step` advances the physics,
 and both finish in `_evaluate` (observation, reward, success, done). The scripted expert and the
@@ -16,15 +17,17 @@ import mujoco
 import numpy as np
 
 from openral_mjx.core import fixed_order as fo
+from openral_mjx.core.errors import ConfigError
 from openral_mjx.physics import PhysicsSettings, PhysicsState, make_backend
 from openral_mjx.physics.kinematics import site_kinematics
 from openral_mjx.policies.base import Policy
 from openral_mjx.policies.push_expert import ForwardKinematics, push_expert
-from openral_mjx.scenes.base import Scene, State, actuator_joints
+from openral_mjx.scenes.base import Scene, State
 from openral_mjx.scenes.composition import yaw_quat
 from openral_mjx.scenes.sensor_obs import sensor_shapes
 from openral_mjx.scenes.tabletop_push import observation
 from openral_mjx.scenes.tabletop_push import task as logic  # `task` is the scene's task name
+from openral_mjx.scenes.tabletop_push.arm import prepare
 from openral_mjx.scenes.tabletop_push.model import compose
 from openral_mjx.scenes.tabletop_push.options import TabletopPushOptions
 
@@ -46,7 +49,8 @@ class TabletopPush(Scene):
         robot = o.robot_spec()
         self.robot_name = robot.name
         self.robot = robot
-        self.spec = compose(o, robot)
+        self.arm = prepare(o, robot)
+        self.spec = compose(o, robot, self.arm)
         sensors = o.sensor_specs()
         self.backend = make_backend(
             backend,
@@ -67,9 +71,18 @@ class TabletopPush(Scene):
         self.ee_site_id = m.site(robot.ee_site).id
         self.goal_site_id = m.site("goal").id
         home = np.array(m.qpos0, dtype=np.float32)
-        for joint, value in robot.home_qpos.items():
+        for joint, value in self.arm.qpos.items():
             home[m.joint(joint).qposadr[0]] = value
         self._qpos_home = jnp.asarray(home)
+        # For each actuator, the index in `robot_joint_ids` of the joint it drives (0 for one
+        # that drives none: the expert holds it at `arm.held`).
+        index = {int(j): i for i, j in enumerate(self.robot_joint_ids)}
+        self.actuator_joint = np.array(
+            [
+                index[int(j)] if i not in self.arm.held else 0
+                for i, j in enumerate(m.actuator_trnid[:, 0])
+            ]
+        )
         self._layout = observation.obs_layout(len(self.robot_joint_ids), self.sensor_shapes)
 
     @property
@@ -178,20 +191,46 @@ class TabletopPush(Scene):
 
         return ee_pose
 
-    def action_obs_index(self) -> tuple[int, ...]:
+    def action_obs_index(self) -> tuple[int, ...] | None:
+        """The joint position each actuator drives; None where one drives no joint (a
+        gripper's tendon)."""
+        if self.arm.held:
+            return None
         start, _ = self._layout["joint_pos"]
-        return tuple(start + int(i) for i in actuator_joints(self.mj_model, self.robot_joint_ids))
+        return tuple(start + int(i) for i in self.actuator_joint)
 
     def scripted_policy(self) -> Policy:
-        """The scene's expert: push along the cube->goal line (see `push_expert`)."""
+        """The scene's expert: push along the cube->goal line (see `push_expert`), with the
+        tool size, push and hover heights measured on the robot (`arm.prepare`)."""
+        arm, o = self.arm, self.options
+        if arm.unreachable is not None:
+            raise ConfigError(f"the scripted expert cannot push: {arm.unreachable}")
         low, high = self.action_bounds()
+        held = None
+        if arm.held:
+            mask = np.zeros(self.action_size, bool)
+            ctrl = np.zeros(self.action_size, np.float32)
+            for i, value in arm.held.items():
+                mask[i], ctrl[i] = True, value
+            held = (jnp.asarray(mask), jnp.asarray(ctrl))
+        # A servo's step response has time constant kv / kp; where that is longer than the
+        # control period, its target leads the joint by that many IK steps.
+        m = self.mj_model
+        tau = -m.actuator_biasprm[:, 2] / np.maximum(m.actuator_gainprm[:, 0], 1e-9)
+        factor = np.maximum(1.0, tau / self.control_dt)
+        lead = None if np.all(factor == 1.0) else jnp.asarray(factor, jnp.float32)
         return push_expert(
             self.obs_layout,
             self.forward_kinematics(),
-            actuator_joints(self.mj_model, self.robot_joint_ids),
+            jnp.asarray(self.actuator_joint),
             low,
             high,
-            table_z=self.options.table_height,
-            cube_half=self.options.cube_size / 2,
-            goal_radius=self.options.goal_radius,
+            table_z=o.table_height,
+            cube_half=o.cube_size / 2,
+            goal_radius=o.goal_radius,
+            tool_radius=arm.tool_radius,
+            push_z=o.table_height + arm.push_height,
+            hover_z=o.table_height + 2 * (o.cube_size / 2) + arm.hover_clearance,
+            held=held,
+            lead=lead,
         )

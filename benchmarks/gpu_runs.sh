@@ -72,5 +72,18 @@ json.dump(d, open(sys.argv[2], 'w'), indent=1)" /tmp/push_warp_1m.json "$out/pus
     ev box_warp_depthcnn "${d[@]}" --opt 'obs_depth_cameras=[overhead]' --policy depth_cnn \
       --frames 2
     python3 benchmarks/depth_agreement.py --n 1024 --steps 20 ;;
+  arms)        # issue 17: the scripted expert on the published-style test arms, 256 seeds each
+    b=${BACKEND:-mjx}
+    ev arm_small6_$b --backend "$b" --n-envs 256 --robot-mjcf tests/data/arms/small6.xml \
+      --opt ee_site=tool0
+    ev arm_industrial6_$b --backend "$b" --n-envs 256 \
+      --robot-mjcf tests/data/arms/industrial6.xml --opt ee_site=attachment_site
+    ev arm_seven_$b --backend "$b" --n-envs 256 --robot-mjcf tests/data/arms/seven.xml \
+      --opt ee_site=tcp ;;
+  batching)    # issue 18: refill vs chunks in episodes/s at one N (SCENE, N, EPISODES, CHUNK)
+    s=${SCENE:-tabletop_push}; n=${N:-65536}
+    python3 -m openral_mjx.bench --batching --scene "$s" --backend warp --n "$n" \
+      --episodes "${EPISODES:-1000000}" --chunk-episodes "${CHUNK:-131072}" \
+      --out "$out/batching_${s}_${n}.json" ;;
   *) echo "unknown stage $1"; exit 2 ;;
 esac

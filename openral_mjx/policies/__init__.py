@@ -19,6 +19,7 @@ from openral_mjx.policies.depth_cnn import depth_cnn_policy
 from openral_mjx.policies.lerobot import lerobot_policy
 from openral_mjx.policies.mlp import check_compatible, load_mlp, mlp_policy
 from openral_mjx.policies.simple import random_policy, zero_policy
+from openral_mjx.policies.torch_policy import torch_policy
 
 PolicyFactory = Callable[[Any, str | None], Policy]
 POLICIES: Registry[PolicyFactory] = Registry("policy")
@@ -76,6 +77,7 @@ def _depth_cnn(scene: Any, arg: str | None) -> Policy:
 
 
 POLICIES.register("lerobot")(lerobot_policy)
+POLICIES.register("torch")(torch_policy)
 
 
 def make_policy(spec: str, scene: Any) -> Policy:

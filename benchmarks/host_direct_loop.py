@@ -23,6 +23,7 @@ def main() -> None:
     p.add_argument("--n", type=int, default=4)
     p.add_argument("--steps", type=int, default=20)
     p.add_argument("--action-size", type=int, default=7)
+    p.add_argument("--resets", type=int, default=1, help="resets of every env (the adapter's)")
     a = p.parse_args()
     module, _, attr = a.factory.partition(":")
     make = getattr(importlib.import_module(module), attr)
@@ -35,6 +36,9 @@ def main() -> None:
     for _ in range(a.steps):
         for env in envs:
             env.step(rng.uniform(-1, 1, a.action_size).astype(np.float32))
+    for _ in range(a.resets - 1):  # e.g. the reset that reads a scene's episode factors
+        for i, env in enumerate(envs):
+            env.reset(seed=i, options={"init_state": i})
     total_s = time.perf_counter() - start
     print(json.dumps({"n": a.n, "steps": a.steps, "reset_s": reset_s, "total_s": total_s}))
 

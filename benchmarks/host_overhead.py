@@ -1,6 +1,7 @@
-"""Host adapter overhead and worker scaling on LIBERO (CPU), in one process and one run.
+"""Host adapter overhead and worker scaling on LIBERO or MetaWorld (CPU), in one process and one
+run (`--scene libero` or `metaworld`).
 
-1. Reference: N LIBERO envs reset and stepped from a plain Python loop in one process of the
+1. Reference: N envs reset and stepped from a plain Python loop in one process of the
    worker environment (`host_direct_loop.py`).
 2. The adapter with one worker holding the same N envs (the same sequential work, plus the
    jitted loop, the callbacks and the pipes): overhead = its time / the reference's - 1.
@@ -9,9 +10,13 @@
    chunk's wall time over that, minus 1.
 3. The adapter with 1, 2, ... workers: scaling (runs interleaved with the reference).
 Timings cover the reset of all N envs and `--steps` control steps (env construction is not
-timed in either). Policy: uniform random actions. Prints and optionally writes JSON.
+timed in either). Policy: uniform random actions. A scene with episode factors (MetaWorld)
+resets its envs once more after the chunk to read them: the reference loop does the same.
+Prints and optionally writes JSON.
 
     python benchmarks/host_overhead.py --n 4 --steps 20 --workers 1 2 4 --out bench.json
+    python benchmarks/host_overhead.py --scene metaworld --task push-v3 --image-size 0 \
+        --n 8 --steps 100 --workers 1 2
 """
 
 from __future__ import annotations
@@ -28,31 +33,47 @@ from openral_mjx.evaluation import evaluate
 from openral_mjx.host.envs import ensure_env
 from openral_mjx.host.pool import _shim_dir
 from openral_mjx.scenes import make_scene
-from openral_mjx.scenes.robosuite_scene import ENV
+
+# scene -> (worker environment, env factory, action size, extra factory kwargs / scene options,
+# resets per run: the episode's, plus one for the factors where the scene has them)
+SCENES = {
+    "libero": ("lerobot-libero", "openral_mjx.host.libero_env:LiberoEnv", 7, {}, 1),
+    "metaworld": ("metaworld", "openral_mjx.host.metaworld_env:make", 4, {"expert": False}, 2),
+}
 
 
-def direct(task: str, image_size: int, n: int, steps: int, repeats: int) -> list[dict]:
-    python = ensure_env(ENV)
+def direct(scene: str, task: str, image_size: int, n: int, steps: int, repeats: int) -> list[dict]:
+    env_name, factory, action_size, extra, resets = SCENES[scene]
+    python = ensure_env(env_name)
     env = {**os.environ, "PYTHONPATH": _shim_dir(), "MUJOCO_GL": "egl", "PYOPENGL_PLATFORM": "egl"}
     script = Path(__file__).with_name("host_direct_loop.py")
-    kwargs = json.dumps({"task": task, "image_size": image_size})
+    kwargs = json.dumps({"task": task, "image_size": image_size, **extra})
     out = []
     for _ in range(repeats):
-        argv = [python, str(script), "--factory", "openral_mjx.host.libero_env:LiberoEnv"]
-        argv += ["--kwargs", kwargs, "--n", str(n), "--steps", str(steps)]
+        argv = [python, str(script), "--factory", factory, "--kwargs", kwargs, "--n", str(n)]
+        argv += ["--steps", str(steps), "--action-size", str(action_size)]
+        argv += ["--resets", str(resets)]
         proc = subprocess.run(argv, env=env, capture_output=True, text=True, check=True)
         out.append(json.loads(proc.stdout.strip().splitlines()[-1]))
     return out
 
 
-def adapter(task: str, image_size: int, n: int, steps: int, workers: int) -> dict:
+def adapter(scene_name: str, task: str, image_size: int, n: int, steps: int, workers: int) -> dict:
     """One adapter run; `env_busy_s` is each worker's time inside the envs' own reset/step
-    code, so `total_s / max(env_busy_s) - 1` is what the adapter adds, measured in-run."""
-    options = {"task": task, "image_size": image_size, "n_workers": workers}
-    scene = make_scene("libero", options)
+    code during the run (from the moment it is compiled), so `total_s / max(env_busy_s) - 1`
+    is what the adapter adds, measured in-run."""
+    extra = SCENES[scene_name][3]
+    options = {"task": task, "image_size": image_size, "n_workers": workers, **extra}
+    scene = make_scene(scene_name, options)
+    start: list[float] = []
+
+    def compiled(done: int, total: int, successes: int) -> None:
+        if done == 0:  # compiled, nothing run yet
+            start.extend(scene.batch.busy_total_s)
+
     try:
-        report = evaluate(scene, "random", n_envs=n, max_steps=steps)
-        busy = list(scene.batch.busy_s)
+        report = evaluate(scene, "random", n_envs=n, max_steps=steps, on_chunk=compiled)
+        busy = [b - s for b, s in zip(scene.batch.busy_total_s, start, strict=True)]
     finally:
         scene.close()
     return {
@@ -66,6 +87,7 @@ def adapter(task: str, image_size: int, n: int, steps: int, workers: int) -> dic
 
 def main() -> None:
     p = argparse.ArgumentParser()
+    p.add_argument("--scene", choices=sorted(SCENES), default="libero")
     p.add_argument("--task", default="libero_spatial/0")
     p.add_argument("--image-size", type=int, default=128)
     p.add_argument("--n", type=int, default=4)
@@ -76,12 +98,13 @@ def main() -> None:
     a = p.parse_args()
     ref, runs = [], []
     for _ in range(a.repeats):  # interleaved, so that a change of machine load hits all alike
-        ref += direct(a.task, a.image_size, a.n, a.steps, 1)
-        runs += [adapter(a.task, a.image_size, a.n, a.steps, w) for w in a.workers]
+        ref += direct(a.scene, a.task, a.image_size, a.n, a.steps, 1)
+        runs += [adapter(a.scene, a.task, a.image_size, a.n, a.steps, w) for w in a.workers]
     best_ref = min(r["total_s"] for r in ref)
     best = {w: min(r["total_s"] for r in runs if r["workers"] == w) for w in a.workers}
     result = {
         "machine": f"{platform.node()} {os.cpu_count()} cpus, load {os.getloadavg()}",
+        "scene": a.scene,
         "task": a.task,
         "image_size": a.image_size,
         "n_envs": a.n,

@@ -117,7 +117,8 @@ def test_list(monkeypatch, capsys):
     [
         (
             ["--scene", "nope"],
-            "unknown scene 'nope'; valid: libero, point_reach, robosuite, so101_box, tabletop_push",
+            "unknown scene 'nope'; valid: libero, metaworld, point_reach, robosuite, so101_box, "
+            "tabletop_push",
         ),
         (["--scene", "so101_box", "--robot", "ur5"], "scene 'so101_box' requires robot 'so101'"),
         (
@@ -127,8 +128,8 @@ def test_list(monkeypatch, capsys):
         (["--scene", "so101_box", "--opt", "tube_diameter=0.03"], "must be < hole_diameter"),
         (
             ["--policy", "nope"],
-            "unknown policy 'nope'; valid: depth_cnn, lerobot, mlp, mlp-sample, random, scripted, "
-            "zero",
+            "unknown policy 'nope'; valid: depth_cnn, lerobot, metaworld-expert, mlp, mlp-sample, "
+            "random, scripted, torch, zero",
         ),
         (["--robot", "ur5"], "unknown robot 'ur5'; valid: so101"),
         (["--backend", "gpu"], "unknown backend 'gpu'; valid: auto, mjx, warp, c"),
@@ -226,8 +227,8 @@ def test_process_exit_code_and_no_traceback(tmp_path):
     )
     assert proc.returncode == 2
     assert proc.stderr.strip() == (
-        "error: unknown scene 'nope'; valid: libero, point_reach, robosuite, so101_box, "
-        "tabletop_push"
+        "error: unknown scene 'nope'; valid: libero, metaworld, point_reach, robosuite, "
+        "so101_box, tabletop_push"
     )
     assert not (tmp_path / "r").exists()
 

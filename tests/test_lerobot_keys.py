@@ -42,6 +42,22 @@ def test_flat_observations_feed_both_state_features():
     }
 
 
+def test_metaworld_keys_as_lerobots_metaworld_env_names_them():
+    """lerobot's MetaWorld env observes `pixels` (-> observation.image) and a 4-D `agent_pos`
+    (-> observation.state); the metaworld scene uses the same names."""
+    features = {"observation.image": ("VISUAL", (3, 64, 64)), "observation.state": ("STATE", (4,))}
+    obs = {
+        "obs": SD((39,), np.float32),
+        "agent_pos": SD((4,), np.float32),
+        "pixels": SD((64, 64, 3), np.uint8),
+        "expert_action": SD((4,), np.float32),
+    }
+    assert key_map(features, obs) == {
+        "observation.image": "pixels",
+        "observation.state": "agent_pos",
+    }
+
+
 def test_explicit_map_and_mismatches():
     features = {"observation.images.front": ("VISUAL", (3, 64, 64))}
     with pytest.raises(ConfigError, match="has no observation: tried \\['front'\\]"):

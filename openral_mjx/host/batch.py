@@ -38,6 +38,8 @@ class BatchConfig:
         step_timeout_s: deadline of one batched step.
         reset_timeout_s: deadline of one batched reset (the first builds the envs).
         env: extra environment variables for the workers.
+        factors: names of the episode factors each env reports at reset (`gym_batch`); every
+            result then holds them as ``factors`` (n, len(factors)) float32.
     """
 
     python: str
@@ -49,6 +51,7 @@ class BatchConfig:
     step_timeout_s: float = 60.0
     reset_timeout_s: float = 600.0
     env: dict[str, str] = dataclasses.field(default_factory=dict)
+    factors: tuple[str, ...] = ()
 
 
 def default_workers() -> int:
@@ -71,6 +74,7 @@ class EnvBatch:
         self._last: dict[str, Any] = {}
         self._ended = np.zeros(0, bool)
         self.busy_s: list[float] = []  # per worker: seconds spent in env code since the reset
+        self.busy_total_s: list[float] = []  # the same over every call since the layout was set
 
     @property
     def n(self) -> int:
@@ -95,6 +99,7 @@ class EnvBatch:
                 "kwargs": c.kwargs,
                 "n": len(self._blocks[w]),
                 "observation": {k: [list(s), d] for k, (s, d) in c.observation.items()},
+                **({"factors": list(c.factors)} if c.factors else {}),
             },
         }
         worker.call(init, c.reset_timeout_s)
@@ -110,6 +115,7 @@ class EnvBatch:
         self._blocks = [list(range(bounds[w], bounds[w + 1])) for w in range(n_workers)]
         self._workers = [None] * n_workers
         self.busy_s = [0.0] * n_workers
+        self.busy_total_s = [0.0] * n_workers
         self._n = n
         self._ended = np.ones(n, bool)
         self._last = {
@@ -121,6 +127,8 @@ class EnvBatch:
             "success": np.zeros(n, bool),
             "error": np.zeros(n, np.int32),
         }
+        if self.config.factors:
+            self._last["factors"] = np.zeros((n, len(self.config.factors)), np.float32)
 
     def start(self, n: int) -> None:
         """Lay out `n` slots and start every worker with its envs built (a failure here is
@@ -166,6 +174,7 @@ class EnvBatch:
 
     def _store(self, w: int, slots: list[int], reply: dict[str, Any]) -> None:
         self.busy_s[w] += reply["busy_s"]
+        self.busy_total_s[w] += reply["busy_s"]
         last = self._last
         for j, i in enumerate(slots):
             for k in last["obs"]:
@@ -176,16 +185,21 @@ class EnvBatch:
             err = reply["errors"][j]
             last["error"][i] = 0 if err is None else self._error(f"env {i}: {err}")
             self._ended[i] = bool(reply["terminated"][j])
+            if "factors" in reply and "factors" in last:
+                last["factors"][i] = reply["factors"][j]
 
     def _result(self, rewards: np.ndarray) -> dict[str, Any]:
         last = self._last
-        return {
+        out = {
             "obs": {k: v.copy() for k, v in last["obs"].items()},
             "reward": rewards,
             "terminated": last["terminated"].copy(),
             "success": last["success"].copy(),
             "error": last["error"].copy(),
         }
+        if "factors" in last:
+            out["factors"] = last["factors"].copy()
+        return out
 
     def reset(self, seeds: np.ndarray, options: list[dict[str, Any]]) -> dict[str, Any]:
         """Reset all `len(seeds)` slots (a new chunk of episodes): slot i gets seeds[i]."""
@@ -193,6 +207,8 @@ class EnvBatch:
         self.busy_s = [0.0] * len(self._blocks)
         self._last["error"][:] = 0
         self._last["success"][:] = False
+        if "factors" in self._last:
+            self._last["factors"][:] = 0.0
         requests = {
             w: {
                 "op": "call",

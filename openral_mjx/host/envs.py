@@ -60,7 +60,20 @@ LEROBOT_LIBERO = EnvRecipe(
     note="lerobot 0.4.4 + LIBERO (hf-libero 0.1.4, robosuite 1.4.0, mujoco 3.x), torch 2.10",
 )
 
-RECIPES: dict[str, EnvRecipe | None] = {"core": None, "lerobot-libero": LEROBOT_LIBERO}
+# MetaWorld 3.1.1 pins mujoco==3.3.0 (the evaluator runs mujoco 4) and needs gymnasium>=1.1:
+# a small environment of its own (no torch), serving the MetaWorld workers and its scripted
+# policies (`metaworld.policies`).
+METAWORLD = EnvRecipe(
+    python="3.11",
+    steps=(("metaworld==3.1.1", "packaging"),),
+    note="MetaWorld 3.1.1 (mujoco 3.3.0, gymnasium 1.x)",
+)
+
+RECIPES: dict[str, EnvRecipe | None] = {
+    "core": None,
+    "lerobot-libero": LEROBOT_LIBERO,
+    "metaworld": METAWORLD,
+}
 READY = "openral_mjx_env.json"
 
 

@@ -4,6 +4,8 @@ A factory returns an env with the gymnasium API: ``reset(seed=int, options=dict)
 info)`` and ``step(action) -> (obs, reward, terminated, truncated, info)``; success is
 ``info["is_success"]`` (or ``info["success"]``). Observations are a dict of arrays (or one
 array, named ``obs``) that must match the declared shapes, so every reply has fixed shapes.
+Declared episode factors are read from the reset's ``info["factors"]`` (name -> float; 0 where
+missing) and returned with every reset as ``factors``, one row per env.
 An env that raises fails alone: its slot reports the error and the worker carries on.
 Standard library and numpy only (plus whatever the factory imports).
 """
@@ -27,15 +29,23 @@ class GymBatch:
         kwargs: keyword arguments of the factory (JSON types).
         n: envs in this worker.
         observation: declared observation, name -> (shape, dtype string).
+        factors: names of the episode factors a reset reports (see module docstring).
     """
 
     def __init__(
-        self, factory: str, kwargs: dict[str, Any], n: int, observation: dict[str, Any]
+        self,
+        factory: str,
+        kwargs: dict[str, Any],
+        n: int,
+        observation: dict[str, Any],
+        factors: list[str] | None = None,
     ) -> None:
         self._make = load(factory)
         self._kwargs = kwargs
         self._envs: list[Any] = [None] * n
         self._spec = {k: (tuple(s), np.dtype(d)) for k, (s, d) in observation.items()}
+        self._factor_names = list(factors or [])
+        self._factors = np.zeros((n, len(self._factor_names)), np.float32)
 
     def _obs(self, raw: Any) -> dict[str, np.ndarray]:
         if not isinstance(raw, dict):
@@ -94,10 +104,16 @@ class GymBatch:
             if self._envs[i] is None:
                 self._envs[i] = self._make(**self._kwargs)
             seed, opts = args[i]
+            self._factors[i] = 0.0
             obs, info = self._envs[i].reset(seed=int(seed), options=opts)
+            values = info.get("factors") or {}
+            self._factors[i] = [float(values.get(k, 0.0)) for k in self._factor_names]
             return obs, 0.0, False, bool(info.get("is_success", info.get("success", False)))
 
-        return self._run(slots, one)
+        out = self._run(slots, one)
+        if self._factor_names:
+            out["factors"] = self._factors[slots]
+        return out
 
     def step(self, slots: list[int], actions: np.ndarray) -> dict[str, Any]:
         """Step the envs at local `slots`, one action row each."""

@@ -11,10 +11,12 @@ latency; the runner accumulates it per episode against the control period.
 Observation keys. Each input feature of the policy (``config.json``) takes one observation
 array of the scene, by this rule unless ``PATH/openral_mjx_keys.yaml`` maps ``feature:
 scene_key`` explicitly: ``observation.images.NAME`` takes ``NAME`` (``image2`` also
-``wrist_image``, lerobot's name for LIBERO's wrist camera); ``observation.state`` takes
-``state``; ``observation.environment_state`` takes ``environment_state`` or ``object``; in a
-scene whose observation is one flat vector, both state features take that vector. Images are
-uint8 (H, W, C) in the scene and (C, H, W) in the policy's features; shapes must agree.
+``wrist_image``, lerobot's name for LIBERO's wrist camera); ``observation.image`` takes
+``image`` or ``pixels`` and ``observation.state`` takes ``state`` or ``agent_pos`` (lerobot's
+gym-env names, e.g. its MetaWorld env's); ``observation.environment_state`` takes
+``environment_state`` or ``object``; in a scene whose observation is one flat vector, both
+state features take that vector. Images are uint8 (H, W, C) in the scene and (C, H, W) in the
+policy's features; shapes must agree.
 """
 
 from __future__ import annotations
@@ -83,8 +85,10 @@ def key_map(
         elif name.startswith("observation.images."):
             short = name.removeprefix("observation.images.")
             candidates = ALIASES.get(short, (short,))
+        elif name == "observation.image":
+            candidates = ("image", "pixels")
         elif name == "observation.state":
-            candidates = ("state", "obs")
+            candidates = ("state", "agent_pos", "obs")
         elif name == "observation.environment_state":
             candidates = ("environment_state", "object", "obs")
         else:

@@ -13,6 +13,8 @@ from openral_mjx.core.registry import Registry
 from openral_mjx.physics import PhysicsSettings, resolve_backend_name
 from openral_mjx.scenes.base import Scene, State
 from openral_mjx.scenes.libero import LiberoOptions, libero, suite_tasks
+from openral_mjx.scenes.metaworld import MetaWorldOptions, metaworld
+from openral_mjx.scenes.metaworld import suite_tasks as metaworld_suite_tasks
 from openral_mjx.scenes.point_reach import PointReachOptions, point_reach
 from openral_mjx.scenes.robosuite_scene import RobosuiteOptions, robosuite
 from openral_mjx.scenes.so101_box import So101Box, So101BoxOptions
@@ -51,13 +53,21 @@ SCENES.register("libero")(
     SceneEntry(LiberoOptions, libero, "panda", backends=("host",), suites=suite_tasks)
 )
 SCENES.register("robosuite")(SceneEntry(RobosuiteOptions, robosuite, "panda", backends=("host",)))
+SCENES.register("metaworld")(
+    SceneEntry(
+        MetaWorldOptions, metaworld, "sawyer", backends=("host",), suites=metaworld_suite_tasks
+    )
+)
 
 
 def scene_suite(name: str, suite: str) -> list[str]:
     """The tasks of `suite` in scene `name` (a `ConfigError` for scenes without suites)."""
     entry = SCENES.get(name)
     if entry.suites is None:
-        raise ConfigError(f"scene {name!r} has no task suites (--suite is for libero)")
+        with_suites = [n for n in SCENES.names() if SCENES.get(n).suites is not None]
+        raise ConfigError(
+            f"scene {name!r} has no task suites (--suite is for {', '.join(with_suites)})"
+        )
     return entry.suites(suite)
 
 

@@ -10,6 +10,8 @@ runner starts with a reset of all slots, so workers started once serve every chu
 
 Determinism: seed s reaches the env as its reset seed (drawn from the episode's reset key) and,
 for simulators with a fixed list of initial states, as init state ``s mod n_init_states``.
+Episode factors (`batch.factors`, e.g. initial object and goal positions) come from each
+env's reset and ride along in the state's info, where `episode_factors` reads them.
 A finished env is not stepped again; it returns its last observation. A worker that crashes
 or hangs fails the episodes of its slots (the error text lands in their metadata) and the
 rest of the batch goes on.
@@ -199,7 +201,7 @@ class HostScene(Scene):
             k: sd((*lead, *shape), jnp.dtype(dtype))
             for k, (shape, dtype) in self.host_spec.batch.observation.items()
         }
-        return {
+        out = {
             "obs": obs,
             "reward": sd(lead, jnp.float32),
             "terminated": sd(lead, jnp.bool_),
@@ -207,6 +209,10 @@ class HostScene(Scene):
             "error": sd(lead, jnp.int32),
             "slot": sd(lead, jnp.int32),
         }
+        factors = self.host_spec.batch.factors
+        if factors:
+            out["factors"] = sd((*lead, len(factors)), jnp.float32)
+        return out
 
     # ---- host side -------------------------------------------------------------------------
 
@@ -250,7 +256,7 @@ class HostScene(Scene):
             reward=out["reward"],
             done=done,
             metrics={"success": success, "diverged": jnp.zeros_like(done), "error": error},
-            info={"slot": out["slot"]},
+            info={"slot": out["slot"], **({"factors": out["factors"]} if "factors" in out else {})},
         )
 
     def reset(self, key: jax.Array) -> State:
@@ -281,6 +287,11 @@ class HostScene(Scene):
 
     def episode_info(self, state: State) -> dict[str, jax.Array]:
         return {"error": state.metrics["error"]}
+
+    def episode_factors(self, state: State) -> dict[str, jax.Array]:
+        """The factors the env reported at reset (`HostSceneSpec.batch.factors`)."""
+        names = self.host_spec.batch.factors
+        return {name: state.info["factors"][i] for i, name in enumerate(names)}
 
     def describe_episode(self, info: Mapping[str, Any]) -> dict[str, Any]:
         code = int(info.get("error", 0))

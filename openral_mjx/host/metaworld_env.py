@@ -1,0 +1,131 @@
+"""A MetaWorld v3 task as a gym-style env (runs in a worker of the ``metaworld`` environment).
+
+MetaWorld 3.1.1's Sawyer env for one task (``reach-v3``, ...), built from its class in
+`metaworld.env_dict.ALL_V3_ENVIRONMENTS` and set up as MetaWorld's own goal-observable and
+goal-hidden constructors do (task set, randomisation unfrozen), except that the random vector
+(object and goal positions) comes from the env's own seeded generator: MetaWorld draws it in
+`_get_state_rand_vec` from ``self.np_random`` when ``seeded_rand_vec`` is set, and `seed(s)`
+re-creates that generator. Every reset re-seeds it with the episode's seed and first puts the
+MuJoCo data back to the model's defaults (`mj_resetData`: controls, warm starts, time), so seed
+s gives the same initial state whatever this env ran before and whichever worker runs it.
+
+Observation: ``obs``, MetaWorld's 39 floats (hand position, gripper opening, object poses,
+the same for the previous step, goal position; the goal is zeros with ``goal_observable=False``
+as in MetaWorld's ML benchmarks), ``agent_pos`` = its first 4 (lerobot's MetaWorld
+``agent_pos``), with ``image_size > 0`` ``pixels`` (lerobot's camera: ``corner2`` moved to
+(0.75, 0.075, 0.7), flipped upright), and with ``expert`` the action of MetaWorld's scripted
+policy for the task (`metaworld.policies.ENV_POLICY_MAP`) at this observation, computed from
+the goal-observable observation (``expert_action``, read by ``--policy metaworld-expert``).
+Action: 4-D (hand xyz delta, gripper) in [-1, 1]. Success: ``info["success"]``; the episode
+ends there, and is truncated at MetaWorld's ``max_path_length`` (500). Reset info carries the
+episode factors: the object's initial position and the goal position.
+"""
+
+from __future__ import annotations
+
+import warnings
+from typing import Any
+
+import numpy as np
+
+CAMERA = "corner2"
+CAMERA_POS = (0.75, 0.075, 0.7)  # lerobot's (and the paper lerobot cites) corner2 position
+FACTORS = ("obj_x", "obj_y", "obj_z", "goal_x", "goal_y", "goal_z")
+
+
+def task_names() -> list[str]:
+    """MetaWorld's 50 v3 tasks, in its order."""
+    from metaworld.env_dict import ALL_V3_ENVIRONMENTS
+
+    return list(ALL_V3_ENVIRONMENTS)
+
+
+def suites() -> dict[str, list[str]]:
+    """MetaWorld's benchmarks as task lists: MT10, MT50, ML45 train and test."""
+    from metaworld import env_dict
+
+    return {
+        "mt10": list(env_dict.MT10_V3),
+        "mt50": list(env_dict.MT50_V3),
+        "ml45-train": list(env_dict.ML45_V3["train"]),
+        "ml45-test": list(env_dict.ML45_V3["test"]),
+    }
+
+
+class MetaWorldEnv:
+    """One MetaWorld v3 task (see module docstring)."""
+
+    def __init__(
+        self,
+        task: str = "reach-v3",
+        goal_observable: bool = True,
+        image_size: int = 0,
+        expert: bool = True,
+    ) -> None:
+        import mujoco
+        from metaworld.env_dict import ALL_V3_ENVIRONMENTS
+        from metaworld.policies import ENV_POLICY_MAP
+
+        if task not in ALL_V3_ENVIRONMENTS:
+            raise ValueError(f"unknown MetaWorld task {task!r}")
+        # the scripted policies warn at every step where their gains saturate an action
+        warnings.filterwarnings("ignore", message=r"Constant\(s\) may be too high")
+        self._mujoco = mujoco
+        kwargs: dict[str, Any] = {}
+        if image_size > 0:
+            kwargs = dict(
+                render_mode="rgb_array", camera_name=CAMERA, width=image_size, height=image_size
+            )
+        env = ALL_V3_ENVIRONMENTS[task](**kwargs)
+        env._set_task_called = True  # a task without a frozen random vector (see module doc)
+        env._partially_observable = not goal_observable
+        env.__dict__.pop("sawyer_observation_space", None)  # cached; depends on the line above
+        env._freeze_rand_vec = False
+        env.seeded_rand_vec = True
+        if image_size > 0:
+            env.model.cam_pos[env.model.camera(CAMERA).id] = CAMERA_POS
+        self.env = env
+        self.task = task
+        self.image_size = image_size
+        self.policy = ENV_POLICY_MAP[task]() if expert else None
+        self.max_steps = int(env.max_path_length)
+
+    def _obs(self, raw: np.ndarray) -> dict[str, np.ndarray]:
+        obs = np.asarray(raw, np.float64)
+        out = {"obs": obs.astype(np.float32), "agent_pos": obs[:4].astype(np.float32)}
+        if self.image_size > 0:
+            out["pixels"] = np.ascontiguousarray(np.flip(self.env.render(), (0, 1)))
+        if self.policy is not None:
+            full = obs.copy()
+            full[-3:] = self.env._get_pos_goal()  # the expert reads the goal, hidden or not
+            action = self.policy.get_action(full)
+            out["expert_action"] = np.clip(np.asarray(action, np.float32), -1.0, 1.0)
+        return out
+
+    def _factors(self) -> dict[str, float]:
+        values = []
+        for vec in (self.env.obj_init_pos, self.env._target_pos):
+            v = np.full(3, np.nan) if vec is None else np.asarray(vec, np.float64).ravel()
+            values.extend((list(v[:3]) + [np.nan] * 3)[:3])
+        return {name: float(v) for name, v in zip(FACTORS, values, strict=True)}
+
+    def reset(self, seed: int | None = None, options: dict | None = None) -> tuple[dict, dict]:
+        del options
+        env = self.env
+        self._mujoco.mj_resetData(env.model, env.data)
+        env.seed(0 if seed is None else int(seed) % 2**32)
+        raw, _ = env.reset()
+        return self._obs(raw), {"success": False, "factors": self._factors()}
+
+    def step(self, action: np.ndarray) -> tuple[dict, float, bool, bool, dict]:
+        a = np.clip(np.asarray(action, np.float32), -1.0, 1.0)
+        raw, reward, _, truncated, info = self.env.step(a)
+        success = bool(info.get("success", 0.0))
+        return self._obs(raw), float(reward), success, bool(truncated), {"success": success}
+
+    def close(self) -> None:
+        self.env.close()
+
+
+def make(**kwargs: Any) -> MetaWorldEnv:
+    return MetaWorldEnv(**kwargs)

@@ -2,8 +2,8 @@
 
 Run with a worker environment's interpreter (``PYTHONPATH`` holding this package), e.g. by
 `benchmarks/host_overhead.py`. Builds N envs (untimed), then times resetting all N and
-stepping each `steps` times with uniform random actions, one env after another, exactly the
-work one adapter worker does for N envs. Prints JSON.
+stepping each `steps` times with uniform random actions (in `--bounds`), one env after
+another, exactly the work one adapter worker does for N envs. Prints JSON.
 """
 
 from __future__ import annotations
@@ -24,18 +24,22 @@ def main() -> None:
     p.add_argument("--steps", type=int, default=20)
     p.add_argument("--action-size", type=int, default=7)
     p.add_argument("--resets", type=int, default=1, help="resets of every env (the adapter's)")
+    p.add_argument("--bounds", default=None, help="JSON [low, high] of the actions (default +-1)")
     a = p.parse_args()
     module, _, attr = a.factory.partition(":")
     make = getattr(importlib.import_module(module), attr)
     envs = [make(**json.loads(a.kwargs)) for _ in range(a.n)]
     rng = np.random.default_rng(0)
+    low, high = (
+        json.loads(a.bounds) if a.bounds else ([-1.0] * a.action_size, [1.0] * a.action_size)
+    )
     start = time.perf_counter()
     for i, env in enumerate(envs):
         env.reset(seed=i, options={"init_state": i})
     reset_s = time.perf_counter() - start
     for _ in range(a.steps):
         for env in envs:
-            env.step(rng.uniform(-1, 1, a.action_size).astype(np.float32))
+            env.step(rng.uniform(low, high).astype(np.float32))
     for _ in range(a.resets - 1):  # e.g. the reset that reads a scene's episode factors
         for i, env in enumerate(envs):
             env.reset(seed=i, options={"init_state": i})

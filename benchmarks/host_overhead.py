@@ -1,5 +1,5 @@
-"""Host adapter overhead and worker scaling on LIBERO or MetaWorld (CPU), in one process and one
-run (`--scene libero` or `metaworld`).
+"""Host adapter overhead and worker scaling on LIBERO, MetaWorld, PushT or ALOHA (CPU), in one
+process and one run (`--scene libero`, `metaworld`, `pusht` or `aloha`).
 
 1. Reference: N envs reset and stepped from a plain Python loop in one process of the
    worker environment (`host_direct_loop.py`).
@@ -10,13 +10,18 @@ run (`--scene libero` or `metaworld`).
    chunk's wall time over that, minus 1.
 3. The adapter with 1, 2, ... workers: scaling (runs interleaved with the reference).
 Timings cover the reset of all N envs and `--steps` control steps (env construction is not
-timed in either). Policy: uniform random actions. A scene with episode factors (MetaWorld)
-resets its envs once more after the chunk to read them: the reference loop does the same.
-Prints and optionally writes JSON.
+timed in either). Policy: uniform random actions in the scene's bounds (ALOHA: zero joint
+targets, see `policy`). A scene with episode factors (MetaWorld, PushT, ALOHA) resets its envs
+once more after the chunk to read them: the reference loop does the same. Prints and
+optionally writes JSON.
 
     python benchmarks/host_overhead.py --n 4 --steps 20 --workers 1 2 4 --out bench.json
     python benchmarks/host_overhead.py --scene metaworld --task push-v3 --image-size 0 \
         --n 8 --steps 100 --workers 1 2
+    python benchmarks/host_overhead.py --scene pusht --task PushT-v0 --image-size 96 \
+        --n 16 --steps 100 --workers 1 2
+    python benchmarks/host_overhead.py --scene aloha --task AlohaTransferCube-v0 \
+        --image-size 480 --n 2 --steps 20 --workers 1 2
 """
 
 from __future__ import annotations
@@ -39,20 +44,51 @@ from openral_mjx.scenes import make_scene
 SCENES = {
     "libero": ("lerobot-libero", "openral_mjx.host.libero_env:LiberoEnv", 7, {}, 1),
     "metaworld": ("metaworld", "openral_mjx.host.metaworld_env:make", 4, {"expert": False}, 2),
+    "pusht": ("gym-envs", "openral_mjx.host.pusht_env:make", 2, {}, 2),
+    "aloha": ("gym-envs", "openral_mjx.host.aloha_env:make", 14, {}, 2),
 }
+
+
+def image_options(scene: str, image_size: int) -> dict:
+    """`--image-size` as the scene's options: ALOHA's camera is `image_size` high and 4/3 of
+    that wide (lerobot's 480 x 640 at 480; 0: no camera)."""
+    if scene == "aloha":
+        return {"image_height": image_size, "image_width": image_size * 4 // 3}
+    return {"image_size": image_size}
+
+
+def policy(scene: str) -> str:
+    """Uniform random actions; on ALOHA zero joint targets (random targets over the whole joint
+    ranges blow its physics up within tens of steps, ending those episodes early)."""
+    return "zero" if scene == "aloha" else "random"
+
+
+def bounds(scene: str, task: str) -> tuple[list[float], list[float]]:
+    """The range the policy's actions are drawn from (the reference loop draws from it too)."""
+    if policy(scene) == "zero":
+        n = SCENES[scene][2]
+        return [0.0] * n, [0.0] * n
+    s = make_scene(scene, {"task": task, **image_options(scene, 8)})
+    try:
+        low, high = s.action_bounds()
+    finally:
+        s.close()
+    return [float(v) for v in low], [float(v) for v in high]
 
 
 def direct(scene: str, task: str, image_size: int, n: int, steps: int, repeats: int) -> list[dict]:
     env_name, factory, action_size, extra, resets = SCENES[scene]
     python = ensure_env(env_name)
     env = {**os.environ, "PYTHONPATH": _shim_dir(), "MUJOCO_GL": "egl", "PYOPENGL_PLATFORM": "egl"}
+    env |= {"SDL_VIDEODRIVER": "dummy", "PYGAME_HIDE_SUPPORT_PROMPT": "1"}
     script = Path(__file__).with_name("host_direct_loop.py")
-    kwargs = json.dumps({"task": task, "image_size": image_size, **extra})
+    kwargs = json.dumps({"task": task, **image_options(scene, image_size), **extra})
+    low, high = bounds(scene, task)
     out = []
     for _ in range(repeats):
         argv = [python, str(script), "--factory", factory, "--kwargs", kwargs, "--n", str(n)]
         argv += ["--steps", str(steps), "--action-size", str(action_size)]
-        argv += ["--resets", str(resets)]
+        argv += ["--resets", str(resets), "--bounds", json.dumps([low, high])]
         proc = subprocess.run(argv, env=env, capture_output=True, text=True, check=True)
         out.append(json.loads(proc.stdout.strip().splitlines()[-1]))
     return out
@@ -63,7 +99,8 @@ def adapter(scene_name: str, task: str, image_size: int, n: int, steps: int, wor
     code during the run (from the moment it is compiled), so `total_s / max(env_busy_s) - 1`
     is what the adapter adds, measured in-run."""
     extra = SCENES[scene_name][3]
-    options = {"task": task, "image_size": image_size, "n_workers": workers, **extra}
+    options = {"task": task, **image_options(scene_name, image_size), "n_workers": workers}
+    options |= extra
     scene = make_scene(scene_name, options)
     start: list[float] = []
 
@@ -72,7 +109,7 @@ def adapter(scene_name: str, task: str, image_size: int, n: int, steps: int, wor
             start.extend(scene.batch.busy_total_s)
 
     try:
-        report = evaluate(scene, "random", n_envs=n, max_steps=steps, on_chunk=compiled)
+        report = evaluate(scene, policy(scene_name), n_envs=n, max_steps=steps, on_chunk=compiled)
         busy = [b - s for b, s in zip(scene.batch.busy_total_s, start, strict=True)]
     finally:
         scene.close()

@@ -61,11 +61,12 @@ class EvalArgs:
     """Policy ID, or ID:ARG (see --list)."""
     task: str | None = None
     """Task of a multi-task scene (libero: SUITE/INDEX, e.g. libero_spatial/0; robosuite: Lift;
-    metaworld: reach-v3, push-v3, ...)."""
+    metaworld: reach-v3, push-v3, ...; pusht: PushT-v0; aloha: AlohaInsertion-v0,
+    AlohaTransferCube-v0)."""
     suite: str | None = None
     """Evaluate every task of a suite (libero: libero_spatial, libero_object, libero_goal,
-    libero_10, libero_90; metaworld: mt10, mt50, ml45-train, ml45-test); reports per-task
-    rates and their average."""
+    libero_10, libero_90; metaworld: mt10, mt50, ml45-train, ml45-test; aloha: all); reports
+    per-task rates and their average."""
     robot: str | None = None
     """Registered robot for robot-agnostic scenes (default: the scene's, so101)."""
     robot_mjcf: Path | None = None

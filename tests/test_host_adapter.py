@@ -155,6 +155,24 @@ def test_a_fault_fails_only_its_own_episodes(clean_run, fault, extra, failed, ne
             )
 
 
+def test_a_diverged_env_ends_its_episode_as_diverged(clean_run):
+    """An env whose step reports `info["diverged"]` (its physics blew up) ends that episode as
+    a diverged failure, with no error; the other episodes match a run without it."""
+    report = _faulty("diverge")
+    assert report.diverged == 1
+    for ep, ref in zip(report.episodes, clean_run.episodes, strict=True):
+        assert ep.metadata["error"] is None
+        if ep.metadata["seed"] == 1:
+            assert ep.metadata["diverged"] and not ep.success and ep.steps == 3
+        else:
+            assert not ep.metadata["diverged"]
+            assert (ep.success, ep.steps, ep.total_reward) == (
+                ref.success,
+                ref.steps,
+                ref.total_reward,
+            )
+
+
 def _workers_of(marker: str) -> list[int]:
     """Processes whose environment carries `marker` (the workers of one test run)."""
     found = []

@@ -58,6 +58,35 @@ def test_metaworld_keys_as_lerobots_metaworld_env_names_them():
     }
 
 
+def test_pusht_and_aloha_keys_as_lerobots_gym_envs_name_them():
+    """lerobot's PushT policies read `observation.image` (<- `pixels`, 96 x 96) or
+    `observation.environment_state` (<- the 16 keypoints) and `observation.state` (<- the 2-D
+    `agent_pos`); its ALOHA policies read `observation.images.top` (<- `top`, 480 x 640) and
+    the 14-D `agent_pos`. The pusht and aloha scenes observe exactly these names and shapes."""
+    state = ("STATE", (2,))
+    pixels = {"pixels": SD((96, 96, 3), np.uint8), "agent_pos": SD((2,), np.float32)}
+    image = {"observation.image": ("VISUAL", (3, 96, 96)), "observation.state": state}
+    assert key_map(image, pixels) == {
+        "observation.image": "pixels",
+        "observation.state": "agent_pos",
+    }
+    keypoints = {"environment_state": SD((16,), np.float32), "agent_pos": SD((2,), np.float32)}
+    env_state = {"observation.environment_state": ("ENV", (16,)), "observation.state": state}
+    assert key_map(env_state, keypoints) == {
+        "observation.environment_state": "environment_state",
+        "observation.state": "agent_pos",
+    }
+    aloha = {"top": SD((480, 640, 3), np.uint8), "agent_pos": SD((14,), np.float32)}
+    act = {
+        "observation.images.top": ("VISUAL", (3, 480, 640)),
+        "observation.state": ("STATE", (14,)),
+    }
+    assert key_map(act, aloha) == {
+        "observation.images.top": "top",
+        "observation.state": "agent_pos",
+    }
+
+
 def test_explicit_map_and_mismatches():
     features = {"observation.images.front": ("VISUAL", (3, 64, 64))}
     with pytest.raises(ConfigError, match="has no observation: tried \\['front'\\]"):

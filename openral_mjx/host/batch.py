@@ -125,6 +125,7 @@ class EnvBatch:
             "reward": np.zeros(n, np.float32),
             "terminated": np.ones(n, bool),
             "success": np.zeros(n, bool),
+            "diverged": np.zeros(n, bool),
             "error": np.zeros(n, np.int32),
         }
         if self.config.factors:
@@ -181,6 +182,7 @@ class EnvBatch:
                 last["obs"][k][i] = reply["obs"][k][j]
             last["reward"][i] = reply["reward"][j]
             last["success"][i] = reply["success"][j]
+            last["diverged"][i] = bool(reply["diverged"][j]) if "diverged" in reply else False
             last["terminated"][i] = reply["terminated"][j]
             err = reply["errors"][j]
             last["error"][i] = 0 if err is None else self._error(f"env {i}: {err}")
@@ -195,6 +197,7 @@ class EnvBatch:
             "reward": rewards,
             "terminated": last["terminated"].copy(),
             "success": last["success"].copy(),
+            "diverged": last["diverged"].copy(),
             "error": last["error"].copy(),
         }
         if "factors" in last:
@@ -207,6 +210,7 @@ class EnvBatch:
         self.busy_s = [0.0] * len(self._blocks)
         self._last["error"][:] = 0
         self._last["success"][:] = False
+        self._last["diverged"][:] = False
         if "factors" in self._last:
             self._last["factors"][:] = 0.0
         requests = {

@@ -69,10 +69,22 @@ METAWORLD = EnvRecipe(
     note="MetaWorld 3.1.1 (mujoco 3.3.0, gymnasium 1.x)",
 )
 
+# gym-pusht (pymunk < 7, pygame, opencv, shapely) and gym-aloha (dm-control < 1.1, mujoco < 3.9)
+# agree on every pin (gymnasium 1.x, numpy 2): one small environment (no torch) serves the PushT
+# and ALOHA workers. gym-aloha cannot join the evaluator's (mujoco 4). It could join MetaWorld's
+# (uv resolves it there with dm-control 1.0.28 for mujoco 3.3.0), but then MetaWorld's exact
+# mujoco pin would hold dm-control back and a change to either recipe would rebuild both.
+GYM_ENVS = EnvRecipe(
+    python="3.11",
+    steps=(("gym-pusht==0.1.8", "gym-aloha==0.1.5", "pymunk>=6.6,<7"),),
+    note="gym-pusht 0.1.8 + gym-aloha 0.1.5 (dm-control 1.0.x, mujoco 3.x, gymnasium 1.x)",
+)
+
 RECIPES: dict[str, EnvRecipe | None] = {
     "core": None,
     "lerobot-libero": LEROBOT_LIBERO,
     "metaworld": METAWORLD,
+    "gym-envs": GYM_ENVS,
 }
 READY = "openral_mjx_env.json"
 

@@ -2,8 +2,10 @@
 
 A factory returns an env with the gymnasium API: ``reset(seed=int, options=dict) -> (obs,
 info)`` and ``step(action) -> (obs, reward, terminated, truncated, info)``; success is
-``info["is_success"]`` (or ``info["success"]``). Observations are a dict of arrays (or one
-array, named ``obs``) that must match the declared shapes, so every reply has fixed shapes.
+``info["is_success"]`` (or ``info["success"]``); a step whose ``info["diverged"]`` is true
+ends the episode as diverged (its physics blew up: a failure, reported as such). Observations
+are a dict of arrays (or one array, named ``obs``) that must match the declared shapes, so
+every reply has fixed shapes.
 Declared episode factors are read from the reset's ``info["factors"]`` (name -> float; 0 where
 missing) and returned with every reset as ``factors``, one row per env.
 An env that raises fails alone: its slot reports the error and the worker carries on.
@@ -64,21 +66,23 @@ class GymBatch:
         return {name: np.zeros(shape, dtype) for name, (shape, dtype) in self._spec.items()}
 
     def _run(self, slots: list[int], fn) -> dict[str, Any]:
-        obs, reward, terminated, success, errors = [], [], [], [], []
+        obs, reward, terminated, success, diverged, errors = [], [], [], [], [], []
         start = time.perf_counter()
         for i in slots:
             try:
-                o, r, t, s = fn(i)
+                o, r, t, s, d = fn(i)
                 obs.append(self._obs(o))
                 reward.append(r)
-                terminated.append(t)
-                success.append(s)
+                terminated.append(t or d)
+                success.append(s and not d)
+                diverged.append(d)
                 errors.append(None)
             except Exception as e:
                 obs.append(self._blank())
                 reward.append(0.0)
                 terminated.append(True)
                 success.append(False)
+                diverged.append(False)
                 last = traceback.format_exc().strip().splitlines()[-3:]
                 errors.append(f"{type(e).__name__}: {e} ({' | '.join(last)})")
         return {
@@ -86,6 +90,7 @@ class GymBatch:
             "reward": np.asarray(reward, np.float32),
             "terminated": np.asarray(terminated, bool),
             "success": np.asarray(success, bool),
+            "diverged": np.asarray(diverged, bool),
             "errors": errors,
             "busy_s": time.perf_counter() - start,  # in the envs' own code (for overhead figures)
         }
@@ -108,7 +113,8 @@ class GymBatch:
             obs, info = self._envs[i].reset(seed=int(seed), options=opts)
             values = info.get("factors") or {}
             self._factors[i] = [float(values.get(k, 0.0)) for k in self._factor_names]
-            return obs, 0.0, False, bool(info.get("is_success", info.get("success", False)))
+            success = bool(info.get("is_success", info.get("success", False)))
+            return obs, 0.0, False, success, False
 
         out = self._run(slots, one)
         if self._factor_names:
@@ -122,7 +128,8 @@ class GymBatch:
         def one(i: int):
             obs, reward, terminated, truncated, info = self._envs[i].step(rows[i])
             success = bool(info.get("is_success", info.get("success", False)))
-            return obs, float(reward), bool(terminated or truncated or success), success
+            done = bool(terminated or truncated or success)
+            return obs, float(reward), done, success, bool(info.get("diverged", False))
 
         return self._run(slots, one)
 

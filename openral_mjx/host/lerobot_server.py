@@ -96,8 +96,9 @@ def build_random_policy(
 ) -> None:
     """Save a small `kind` ("act" or "diffusion") policy with random weights at `path`.
 
-    `features` maps input feature names to shapes (``observation.images.*``: (3, H, W);
-    ``observation.state`` / ``observation.environment_state``: (d,)). Normalisation statistics
+    `features` maps input feature names to shapes (``observation.images.*`` and PushT's
+    ``observation.image``: (3, H, W); ``observation.state`` / ``observation.environment_state``:
+    (d,)). Normalisation statistics
     are unit ones (mean 0 / std 1, min -1 / max 1), saved in the processor files as lerobot
     saves a trained policy's.
     """
@@ -109,7 +110,7 @@ def build_random_policy(
     torch.manual_seed(seed)
 
     def kind_of(name: str) -> FeatureType:
-        if name.startswith("observation.images."):
+        if name == "observation.image" or name.startswith("observation.images."):
             return FeatureType.VISUAL
         if name == "observation.environment_state":
             return FeatureType.ENV

@@ -7,8 +7,9 @@ target x, target y) float32 and a tiny ``image`` (8 x 8 RGB, uint8) with the poi
 the target in green, so that image transport is exercised too.
 
 Fault injection, for tests of the adapter's fault handling: the env reset with init state
-``fault_init_state`` crashes its worker process (``fault="crash"``), hangs (``"hang"``) or
-raises (``"raise"``) at step ``fault_step``. Runs in any environment with numpy.
+``fault_init_state`` crashes its worker process (``fault="crash"``), hangs (``"hang"``),
+raises (``"raise"``) or reports its physics diverged (``"diverge"``: ``info["diverged"]``) at
+step ``fault_step``. Runs in any environment with numpy.
 """
 
 from __future__ import annotations
@@ -43,8 +44,8 @@ class PointReachEnv:
     def __init__(
         self, fault: str | None = None, fault_init_state: int = -1, fault_step: int = 0
     ) -> None:
-        if fault not in (None, "crash", "hang", "raise"):
-            raise ValueError(f"unknown fault {fault!r}; valid: crash, hang, raise")
+        if fault not in (None, "crash", "hang", "raise", "diverge"):
+            raise ValueError(f"unknown fault {fault!r}; valid: crash, hang, raise, diverge")
         self.fault, self.fault_init_state, self.fault_step = fault, fault_init_state, fault_step
         self.pos = np.zeros(2, np.float32)
         self.target = np.zeros(2, np.float32)
@@ -80,6 +81,8 @@ class PointReachEnv:
                 os._exit(3)
             if self.fault == "hang":
                 time.sleep(3600)
+            if self.fault == "diverge":
+                return self._obs(), 0.0, True, False, {"is_success": False, "diverged": True}
             raise RuntimeError(f"injected fault at step {self.t}")
         a = np.clip(np.asarray(action, np.float32), -1.0, 1.0)
         self.pos = np.clip(self.pos + STEP * a, 0.0, 1.0).astype(np.float32)

@@ -11,11 +11,14 @@ from openral_mjx.core.errors import ConfigError
 from openral_mjx.core.options import from_mapping
 from openral_mjx.core.registry import Registry
 from openral_mjx.physics import PhysicsSettings, resolve_backend_name
+from openral_mjx.scenes.aloha import AlohaOptions, aloha
+from openral_mjx.scenes.aloha import suite_tasks as aloha_suite_tasks
 from openral_mjx.scenes.base import Scene, State
 from openral_mjx.scenes.libero import LiberoOptions, libero, suite_tasks
 from openral_mjx.scenes.metaworld import MetaWorldOptions, metaworld
 from openral_mjx.scenes.metaworld import suite_tasks as metaworld_suite_tasks
 from openral_mjx.scenes.point_reach import PointReachOptions, point_reach
+from openral_mjx.scenes.pusht import PushTOptions, pusht
 from openral_mjx.scenes.robosuite_scene import RobosuiteOptions, robosuite
 from openral_mjx.scenes.so101_box import So101Box, So101BoxOptions
 from openral_mjx.scenes.tabletop_push import TabletopPush, TabletopPushOptions
@@ -57,6 +60,10 @@ SCENES.register("metaworld")(
     SceneEntry(
         MetaWorldOptions, metaworld, "sawyer", backends=("host",), suites=metaworld_suite_tasks
     )
+)
+SCENES.register("pusht")(SceneEntry(PushTOptions, pusht, "pusht_agent", backends=("host",)))
+SCENES.register("aloha")(
+    SceneEntry(AlohaOptions, aloha, "aloha", backends=("host",), suites=aloha_suite_tasks)
 )
 
 

@@ -12,9 +12,10 @@ Determinism: seed s reaches the env as its reset seed (drawn from the episode's 
 for simulators with a fixed list of initial states, as init state ``s mod n_init_states``.
 Episode factors (`batch.factors`, e.g. initial object and goal positions) come from each
 env's reset and ride along in the state's info, where `episode_factors` reads them.
-A finished env is not stepped again; it returns its last observation. A worker that crashes
-or hangs fails the episodes of its slots (the error text lands in their metadata) and the
-rest of the batch goes on.
+An env whose physics blows up (its step reports ``info["diverged"]``) ends as a diverged
+episode, a failure marked as such. A finished env is not stepped again; it returns its last
+observation. A worker that crashes or hangs fails the episodes of its slots (the error text
+lands in their metadata) and the rest of the batch goes on.
 """
 
 from __future__ import annotations
@@ -206,6 +207,7 @@ class HostScene(Scene):
             "reward": sd(lead, jnp.float32),
             "terminated": sd(lead, jnp.bool_),
             "success": sd(lead, jnp.bool_),
+            "diverged": sd(lead, jnp.bool_),
             "error": sd(lead, jnp.int32),
             "slot": sd(lead, jnp.int32),
         }
@@ -244,18 +246,20 @@ class HostScene(Scene):
 
     def _state(self, out: dict[str, Any], prev: State | None) -> State:
         error = out["error"]
-        success = out["success"] & (error == 0)
-        done = out["terminated"] | success | (error > 0)
+        diverged = out["diverged"] & (error == 0)
+        success = out["success"] & (error == 0) & ~diverged
+        done = out["terminated"] | success | diverged | (error > 0)
         if prev is not None:  # finished envs stay finished with what they ended with
             error = jnp.where(prev.metrics["error"] > 0, prev.metrics["error"], error)
             success = success | prev.metrics["success"]
+            diverged = diverged | prev.metrics["diverged"]
             done = done | prev.done
         return State(
             physics=None,
             obs=out["obs"],
             reward=out["reward"],
             done=done,
-            metrics={"success": success, "diverged": jnp.zeros_like(done), "error": error},
+            metrics={"success": success, "diverged": diverged, "error": error},
             info={"slot": out["slot"], **({"factors": out["factors"]} if "factors" in out else {})},
         )
 

@@ -29,8 +29,10 @@ class PointReachOptions(HostOptions):
     def __post_init__(self) -> None:
         super().__post_init__()
         check(self.max_steps >= 1, f"option max_steps={self.max_steps}: must be >= 1")
-        valid = (None, "crash", "hang", "raise")
-        check(self.fault in valid, f"option fault={self.fault!r}; valid: crash, hang, raise")
+        valid = (None, "crash", "hang", "raise", "diverge")
+        check(
+            self.fault in valid, f"option fault={self.fault!r}; valid: crash, hang, raise, diverge"
+        )
 
 
 def point_reach(options: PointReachOptions, **_: object) -> HostScene:

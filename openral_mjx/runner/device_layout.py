@@ -73,6 +73,12 @@ class Layout:
 
         return jax.tree.map(slice_on, tree)
 
+    def local_args(self, args: Any) -> dict[jax.Device, Any]:
+        """`local(args, d)` for every local device, taken in the calling thread before `launch`
+        starts the device threads: the threads then only run programs, and never read the
+        arrays' shard lists concurrently."""
+        return {d: self.local(args, d) for d in self.local_devices}
+
     def assemble(self, parts: list[Any], out_axes: Any) -> Any:
         """The global arrays of per-device outputs (one tree per local device): leaves under an
         entry `k` of `out_axes` (a prefix of the outputs' tree) concatenate along axis `k`."""
@@ -115,7 +121,8 @@ class PerDevice:
     out_axes: Any = 0
 
     def __call__(self, *args: Any) -> Any:
-        parts = self.layout.launch(lambda d: self.fn(*self.layout.local(args, d)))
+        local = self.layout.local_args(args)
+        parts = self.layout.launch(lambda d: self.fn(*local[d]))
         return self.layout.assemble(parts, self.out_axes)
 
     def compile(self, args: tuple, lower: Lower = _plain_lower) -> Program:
@@ -143,7 +150,8 @@ class Program:
 
     def __call__(self, *args: Any) -> Any:
         executables = dict(zip(self.layout.local_devices, self.executables, strict=True))
-        parts = self.layout.launch(lambda d: executables[d](*self.layout.local(args, d)))
+        local = self.layout.local_args(args)
+        parts = self.layout.launch(lambda d: executables[d](*local[d]))
         return self.layout.assemble(parts, self.out_axes)
 
     def memory_analysis(self) -> Any:

@@ -110,12 +110,70 @@ class MetaWorldEnv:
         return {name: float(v) for name, v in zip(FACTORS, values, strict=True)}
 
     def reset(self, seed: int | None = None, options: dict | None = None) -> tuple[dict, dict]:
-        del options
+        """A new episode from `seed`, or with ``options={"rand_vec": [...]}`` from that random
+        vector (MetaWorld's frozen-vector path: the mirror scene's agreement tests put both
+        envs on the same initial state this way)."""
         env = self.env
         self._mujoco.mj_resetData(env.model, env.data)
         env.seed(0 if seed is None else int(seed) % 2**32)
-        raw, _ = env.reset()
+        vec = (options or {}).get("rand_vec")
+        if vec is not None:
+            env._last_rand_vec = np.asarray(vec, np.float64)
+            env._freeze_rand_vec = True
+        try:
+            raw, _ = env.reset()
+        finally:
+            env._freeze_rand_vec = False
         return self._obs(raw), {"success": False, "factors": self._factors()}
+
+    def state(self) -> dict[str, np.ndarray]:
+        """Joint positions and velocities, mocap target and the positions MetaWorld's task logic
+        reads (hand, tcp centre, the observation's objects): what agreement tests compare."""
+        env = self.env
+        return {
+            "qpos": env.data.qpos.copy(),
+            "qvel": env.data.qvel.copy(),
+            "mocap_pos": env.data.mocap_pos.copy(),
+            "body_pos": env.model.body_pos.copy(),
+            "tcp_center": np.asarray(env.tcp_center, np.float64).copy(),
+            "target_pos": np.asarray(env._target_pos, np.float64).copy(),
+        }
+
+    def rollout(
+        self,
+        rand_vec: np.ndarray | None,
+        actions: np.ndarray | None = None,
+        max_steps: int = 500,
+        qpos: np.ndarray | None = None,
+        qvel: np.ndarray | None = None,
+    ) -> dict[str, Any]:
+        """One episode in this worker: from `rand_vec` (then, if given, the joint state `qpos`,
+        `qvel`: another simulator's reset state), playing `actions` (T, 4) open loop, or the
+        scripted expert closed loop when None, until success (expert) or the end. Returns the
+        observations (T + 1, 39), per-step success and the step of first success (-1)."""
+        obs, _ = self.reset(options={"rand_vec": rand_vec})
+        if qpos is not None:
+            self.env.set_state(np.asarray(qpos, np.float64), np.asarray(qvel, np.float64))
+            self.env._prev_obs = self.env._get_curr_obs_combined_no_goal()
+            obs = self._obs(self.env._get_obs())
+        raw = [obs["obs"]]
+        successes, played = [], []
+        steps = max_steps if actions is None else len(actions)
+        for t in range(steps):
+            a = obs["expert_action"] if actions is None else actions[t]
+            played.append(a)
+            obs, _, success, truncated, _ = self.step(a)
+            raw.append(obs["obs"])
+            successes.append(success)
+            if (actions is None and success) or truncated:
+                break
+        hits = np.flatnonzero(successes)
+        return {
+            "obs": np.stack(raw),
+            "actions": np.asarray(played, np.float32).reshape(-1, 4),
+            "success": np.asarray(successes, bool),
+            "first_success": int(hits[0]) if hits.size else -1,
+        }
 
     def step(self, action: np.ndarray) -> tuple[dict, float, bool, bool, dict]:
         a = np.clip(np.asarray(action, np.float32), -1.0, 1.0)
@@ -129,3 +187,26 @@ class MetaWorldEnv:
 
 def make(**kwargs: Any) -> MetaWorldEnv:
     return MetaWorldEnv(**kwargs)
+
+
+class MetaWorldExpert:
+    """MetaWorld's scripted policy for one task, over a batch of observations (for the
+    `metaworld_mjx` mirror, whose observations come from JAX)."""
+
+    def __init__(self, task: str) -> None:
+        from metaworld.policies import ENV_POLICY_MAP
+
+        if task not in ENV_POLICY_MAP:
+            raise ValueError(f"no MetaWorld scripted policy for task {task!r}")
+        warnings.filterwarnings("ignore", message=r"Constant\(s\) may be too high")
+        self.policy = ENV_POLICY_MAP[task]()
+
+    def act(self, obs: np.ndarray) -> np.ndarray:
+        """Actions (n, 4) in [-1, 1] for observations (n, 39) (goal included)."""
+        obs = np.asarray(obs, np.float64).reshape(-1, 39)
+        out = np.stack([self.policy.get_action(o) for o in obs]) if len(obs) else np.zeros((0, 4))
+        return np.clip(out, -1.0, 1.0).astype(np.float32)
+
+
+def make_expert(task: str) -> MetaWorldExpert:
+    return MetaWorldExpert(task)

@@ -24,7 +24,7 @@ from openral_mjx.physics.cameras import RgbSpec, SensorSpec, sensor_key
 
 @dataclasses.dataclass(frozen=True)
 class QuantitySpec:
-    """What the task logic reads: named bodies' and sites' world poses, and sensors.
+    """What the task logic reads: named bodies', sites' and geoms' world poses, and sensors.
 
     `sensors` are laser scanners (`raycast.LaserSpec`), depth cameras (`raycast.DepthSpec`)
     and RGB cameras (`RgbSpec`, rendered on `warp` only); their readings appear in
@@ -34,6 +34,7 @@ class QuantitySpec:
     bodies: tuple[str, ...] = ()
     sites: tuple[str, ...] = ()
     sensors: tuple[SensorSpec, ...] = ()
+    geoms: tuple[str, ...] = ()
 
 
 @dataclasses.dataclass(frozen=True)
@@ -74,6 +75,8 @@ class Quantities:
     body_pos: jax.Array  # (len(spec.bodies), 3)
     body_quat: jax.Array  # (len(spec.bodies), 4)
     site_pos: jax.Array  # (len(spec.sites), 3)
+    geom_pos: jax.Array  # (len(spec.geoms), 3)
+    geom_quat: jax.Array  # (len(spec.geoms), 4)
     ok: jax.Array  # () bool: False once the state went non-finite or the engine reset it
     # Sensor readings by key: laser ranges (n_beams,) and depth images (H, W) in metres, RGB
     # images (H, W, 3) in [0, 1].
@@ -82,10 +85,42 @@ class Quantities:
 
 @struct.dataclass
 class PhysicsState:
-    """One env's physics: backend-specific `data` plus the common `quantities`."""
+    """One env's physics: backend-specific `data` plus the common `quantities`.
+
+    `fields` are this env's own values of model fields (name -> the whole field, e.g.
+    ``body_pos`` (nbody, 3)), set at `init` and used by every step: per-episode geometry that
+    a scene writes into the model (a MetaWorld mirror moves fixed bodies per reset) and
+    per-env randomised physics. Empty: the model's own values.
+    """
 
     data: Any
     quantities: Quantities
+    fields: dict[str, jax.Array] = struct.field(default_factory=dict)
+
+
+# Model fields an env may override (`PhysicsState.fields`): geometry and per-episode physics.
+PER_ENV_FIELDS = frozenset(
+    {
+        "body_pos",
+        "body_quat",
+        "body_mass",
+        "geom_friction",
+        "site_pos",
+        "dof_damping",
+        "dof_armature",
+        "actuator_gainprm",
+        "actuator_biasprm",
+    }
+)
+
+
+def check_fields(fields: dict[str, Any]) -> None:
+    """A `ConfigError` for a model field no backend varies per env."""
+    bad = sorted(set(fields) - PER_ENV_FIELDS)
+    if bad:
+        raise ConfigError(
+            f"model fields {bad} cannot vary per env; valid: {', '.join(sorted(PER_ENV_FIELDS))}"
+        )
 
 
 class PhysicsBackend(abc.ABC):
@@ -119,6 +154,7 @@ class PhysicsBackend(abc.ABC):
         self.mj_model = spec.copy().compile()
         self.body_ids = tuple(self.mj_model.body(n).id for n in quantities.bodies)
         self.site_ids = tuple(self.mj_model.site(n).id for n in quantities.sites)
+        self.geom_ids = tuple(self.mj_model.geom(n).id for n in quantities.geoms)
         keys = [sensor_key(s) for s in quantities.sensors]
         duplicate = sorted({k for k in keys if keys.count(k) > 1})
         if duplicate:
@@ -173,12 +209,21 @@ class PhysicsBackend(abc.ABC):
         """Backend-specific construction, after the common fields above are set."""
 
     @abc.abstractmethod
-    def init(self, qpos: jax.Array, qvel: jax.Array) -> PhysicsState:
-        """A state at time 0 with the given joint positions and velocities (forward-evaluated)."""
+    def init(
+        self, qpos: jax.Array, qvel: jax.Array, fields: dict[str, jax.Array] | None = None
+    ) -> PhysicsState:
+        """A state at time 0 with the given joint positions and velocities (forward-evaluated),
+        simulating a model whose `fields` (see `PhysicsState.fields`) take these values."""
 
     @abc.abstractmethod
-    def step(self, state: PhysicsState, ctrl: jax.Array) -> PhysicsState:
-        """Hold `ctrl` for `n_substeps` physics steps."""
+    def step(
+        self,
+        state: PhysicsState,
+        ctrl: jax.Array,
+        mocap: tuple[jax.Array, jax.Array] | None = None,
+    ) -> PhysicsState:
+        """Hold `ctrl` (and, for a model with mocap bodies, `mocap` = their positions (nmocap,
+        3) and unit quaternions (nmocap, 4)) for `n_substeps` physics steps."""
 
     def warm_up(self) -> None:  # noqa: B027 - an optional hook, a no-op by default
         """Build whatever the first step would build lazily (e.g. GPU kernels), so that it is
@@ -211,6 +256,58 @@ class PhysicsBackend(abc.ABC):
     def describe(self) -> dict[str, Any]:
         """Settings recorded in reports."""
         return {"name": self.name, "n_substeps": self.n_substeps}
+
+
+def mat_to_quat(mat: jax.Array) -> jax.Array:
+    """Rotation matrices (..., 3, 3) -> unit quaternions (..., 4), w-x-y-z with w >= 0 (MuJoCo's
+    `mju_mat2Quat` convention; Shepperd's method, stable for every rotation)."""
+    r = mat
+    trace = r[..., 0, 0] + r[..., 1, 1] + r[..., 2, 2]
+    candidates = jnp.stack(
+        [
+            jnp.stack(
+                [
+                    1 + trace,
+                    r[..., 2, 1] - r[..., 1, 2],
+                    r[..., 0, 2] - r[..., 2, 0],
+                    r[..., 1, 0] - r[..., 0, 1],
+                ],
+                -1,
+            ),
+            jnp.stack(
+                [
+                    r[..., 2, 1] - r[..., 1, 2],
+                    1 + r[..., 0, 0] - r[..., 1, 1] - r[..., 2, 2],
+                    r[..., 0, 1] + r[..., 1, 0],
+                    r[..., 0, 2] + r[..., 2, 0],
+                ],
+                -1,
+            ),
+            jnp.stack(
+                [
+                    r[..., 0, 2] - r[..., 2, 0],
+                    r[..., 0, 1] + r[..., 1, 0],
+                    1 - r[..., 0, 0] + r[..., 1, 1] - r[..., 2, 2],
+                    r[..., 1, 2] + r[..., 2, 1],
+                ],
+                -1,
+            ),
+            jnp.stack(
+                [
+                    r[..., 1, 0] - r[..., 0, 1],
+                    r[..., 0, 2] + r[..., 2, 0],
+                    r[..., 1, 2] + r[..., 2, 1],
+                    1 - r[..., 0, 0] - r[..., 1, 1] + r[..., 2, 2],
+                ],
+                -1,
+            ),
+        ],
+        -2,
+    )
+    pick = jnp.argmax(jnp.stack([trace, r[..., 0, 0], r[..., 1, 1], r[..., 2, 2]], -1), axis=-1)
+    q = jnp.take_along_axis(candidates, pick[..., None, None], axis=-2)[..., 0, :]
+    q = q / jnp.linalg.norm(q, axis=-1, keepdims=True)
+    return jnp.where(q[..., :1] < 0, -q, q)
 
 
 def all_finite(*arrays: jax.Array) -> jax.Array:

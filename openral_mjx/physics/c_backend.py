@@ -12,6 +12,8 @@ those poses, as on every backend (`raycast`).
 from __future__ import annotations
 
 import atexit
+import copy
+import functools
 import os
 import threading
 import weakref
@@ -28,9 +30,14 @@ from openral_mjx.physics.base import (
     PhysicsState,
     Quantities,
     QuantitySpec,
+    check_fields,
 )
 
 _FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS
+_CTRL = int(mujoco.mjtState.mjSTATE_CTRL)
+_CTRL_MOCAP = (
+    _CTRL | int(mujoco.mjtState.mjSTATE_MOCAP_POS) | int(mujoco.mjtState.mjSTATE_MOCAP_QUAT)
+)
 _LIVE: weakref.WeakSet[CBackend] = weakref.WeakSet()
 
 
@@ -52,7 +59,9 @@ def default_threads() -> int:
 class CBackend(PhysicsBackend):
     """MuJoCo's C engine (float64), multithreaded over the batch with `mujoco.rollout`.
 
-    `settings.threads` worker threads step the batch (default: all available cores).
+    `settings.threads` worker threads step the batch (default: all available cores). Envs
+    with their own model fields (`PhysicsState.fields`) step on per-env copies of the model,
+    whose fields are written before each batched step.
     """
 
     name = "c"
@@ -71,6 +80,7 @@ class CBackend(PhysicsBackend):
         self._nsens = m.nsensordata
         self._pool: rollout.Rollout | None = None
         self._datas: list[mujoco.MjData] = []
+        self._env_models: list[mujoco.MjModel] = []
         self._lock = threading.Lock()
         _LIVE.add(self)
 
@@ -90,6 +100,9 @@ class CBackend(PhysicsBackend):
                 objtype=mujoco.mjtObj.mjOBJ_SITE,
                 objname=name,
             )
+        for name in quantities.geoms:
+            for kind in (mujoco.mjtSensor.mjSENS_FRAMEPOS, mujoco.mjtSensor.mjSENS_FRAMEQUAT):
+                s.add_sensor(type=kind, objtype=mujoco.mjtObj.mjOBJ_GEOM, objname=name)
         for b in self.sensor_bodies:
             for kind in (mujoco.mjtSensor.mjSENS_FRAMEPOS, mujoco.mjtSensor.mjSENS_FRAMEQUAT):
                 s.add_sensor(
@@ -113,11 +126,14 @@ class CBackend(PhysicsBackend):
 
     def _readout(self, states: np.ndarray, sens: np.ndarray, ok: np.ndarray) -> tuple:
         nb, ns = len(self.quantity_spec.bodies), len(self.quantity_spec.sites)
-        nr = len(self.sensor_bodies)
+        ng, nr = len(self.quantity_spec.geoms), len(self.sensor_bodies)
         n = len(sens)
         body = sens[:, : 7 * nb].reshape(n, nb, 7)
         site = sens[:, 7 * nb : 7 * nb + 3 * ns].reshape(n, ns, 3)
-        seen = sens[:, 7 * nb + 3 * ns : 7 * (nb + nr) + 3 * ns].reshape(n, nr, 7)
+        at = 7 * nb + 3 * ns
+        geom = sens[:, at : at + 7 * ng].reshape(n, ng, 7)
+        at += 7 * ng
+        seen = sens[:, at : at + 7 * nr].reshape(n, nr, 7)
         qpos = states[:, self._off_qpos : self._off_qpos + self.nq]
         qvel = states[:, self._off_qvel : self._off_qvel + self.nv]
         ok = ok & np.isfinite(states).all(axis=1) & np.isfinite(sens).all(axis=1)
@@ -129,20 +145,39 @@ class CBackend(PhysicsBackend):
             body[:, :, :3].astype(f32),
             body[:, :, 3:].astype(f32),
             site.astype(f32),
+            geom[:, :, :3].astype(f32),
+            geom[:, :, 3:].astype(f32),
             seen[:, :, :3].astype(f32),
             seen[:, :, 3:].astype(f32),
             ok,
         )
 
-    def _host_init(self, qpos: np.ndarray, qvel: np.ndarray) -> tuple:
+    def _models(self, n: int, names: tuple[str, ...], values: tuple) -> list[mujoco.MjModel]:
+        """`n` per-env copies of the model with env i's `values` of fields `names` written in
+        (copies are kept and reused; every field named is rewritten each call)."""
+        while len(self._env_models) < n:
+            self._env_models.append(copy.copy(self._model))
+        models = self._env_models[:n]
+        for name, value in zip(names, values, strict=True):
+            value = np.asarray(value, np.float64).reshape((n, *getattr(self._model, name).shape))
+            for m, v in zip(models, value, strict=True):
+                getattr(m, name)[:] = v
+        return models
+
+    def _host_init(
+        self, names: tuple[str, ...], qpos: np.ndarray, qvel: np.ndarray, *values
+    ) -> tuple:
         lead = qpos.shape[:-1]
         qpos = np.asarray(qpos, np.float64).reshape(-1, self.nq)
         qvel = np.asarray(qvel, np.float64).reshape(-1, self.nv)
         n = qpos.shape[0]
-        m, d = self._model, mujoco.MjData(self._model)
+        d = mujoco.MjData(self._model)
+        with self._lock:
+            models = self._models(n, names, values) if names else [self._model] * n
         states = np.empty((n, self.nstate))
         sens = np.empty((n, self._nsens))
         for i in range(n):  # reset only, once per chunk: not on the stepping hot path
+            m = models[i]
             mujoco.mj_resetData(m, d)
             d.qpos[:], d.qvel[:] = qpos[i], qvel[i]
             mujoco.mj_forward(m, d)
@@ -151,14 +186,27 @@ class CBackend(PhysicsBackend):
         out = self._readout(states, sens, np.ones(n, bool))
         return tuple(o.reshape(lead + o.shape[1:]) for o in out)
 
-    def _host_step(self, bits: np.ndarray, ctrl: np.ndarray) -> tuple:
+    def _host_step(
+        self, names: tuple[str, ...], mocap: bool, bits: np.ndarray, ctrl: np.ndarray, *rest
+    ) -> tuple:
         lead = ctrl.shape[:-1]
         states = np.ascontiguousarray(bits, np.uint32).reshape(-1, 2 * self.nstate)
         states = states.view(np.float64)
-        ctrl = np.nan_to_num(np.asarray(ctrl, np.float64).reshape(-1, 1, self.nu))
+        n = states.shape[0]
+        control = [np.asarray(ctrl, np.float64).reshape(n, self.nu)]
+        if mocap:
+            control += [np.asarray(r, np.float64).reshape(n, -1) for r in rest[:2]]
+            rest = rest[2:]
+        control = np.nan_to_num(np.concatenate(control, axis=1)[:, None, :])
         with self._lock:
+            models = self._models(n, names, rest) if names else self._model
             out, sens = self._ensure_pool().rollout(
-                self._model, self._datas, states, ctrl, nstep=self.n_substeps
+                models,
+                self._datas,
+                states,
+                control,
+                control_spec=_CTRL_MOCAP if mocap else _CTRL,
+                nstep=self.n_substeps,
             )
         last = np.ascontiguousarray(out[:, -1])
         # MuJoCo resets a state it finds unstable (time goes back to 0): that env diverged.
@@ -171,7 +219,7 @@ class CBackend(PhysicsBackend):
 
     def _result_shapes(self, lead: tuple[int, ...]) -> tuple:
         nb, ns = len(self.quantity_spec.bodies), len(self.quantity_spec.sites)
-        nr = len(self.sensor_bodies)
+        ng, nr = len(self.quantity_spec.geoms), len(self.sensor_bodies)
         f32 = jnp.float32
         sd = jax.ShapeDtypeStruct
         return (
@@ -181,39 +229,62 @@ class CBackend(PhysicsBackend):
             sd((*lead, nb, 3), f32),
             sd((*lead, nb, 4), f32),
             sd((*lead, ns, 3), f32),
+            sd((*lead, ng, 3), f32),
+            sd((*lead, ng, 4), f32),
             sd((*lead, nr, 3), f32),
             sd((*lead, nr, 4), f32),
             sd((*lead,), jnp.bool_),
         )
 
-    def _pack(self, out: Any) -> PhysicsState:
-        bits, qpos, qvel, bpos, bquat, spos, rpos, rquat, ok = out
+    def _pack(self, out: Any, fields: dict[str, jax.Array]) -> PhysicsState:
+        bits, qpos, qvel, bpos, bquat, spos, gpos, gquat, rpos, rquat, ok = out
         q = Quantities(
             qpos=qpos,
             qvel=qvel,
             body_pos=bpos,
             body_quat=bquat,
             site_pos=spos,
+            geom_pos=gpos,
+            geom_quat=gquat,
             ok=ok,
             sensors=self.read_sensors_of(rpos, rquat),
         )
-        return PhysicsState(data=bits, quantities=q)
+        return PhysicsState(data=bits, quantities=q, fields=fields)
 
-    def init(self, qpos: jax.Array, qvel: jax.Array) -> PhysicsState:
+    def init(
+        self, qpos: jax.Array, qvel: jax.Array, fields: dict[str, jax.Array] | None = None
+    ) -> PhysicsState:
+        fields = dict(fields or {})
+        check_fields(fields)
+        names = tuple(sorted(fields))
         out = jax.pure_callback(
-            self._host_init, self._result_shapes(()), qpos, qvel, vmap_method="broadcast_all"
+            functools.partial(self._host_init, names),
+            self._result_shapes(()),
+            qpos,
+            qvel,
+            *(fields[k] for k in names),
+            vmap_method="broadcast_all",
         )
-        return self._pack(out)
+        return self._pack(out, fields)
 
-    def step(self, state: PhysicsState, ctrl: jax.Array) -> PhysicsState:
+    def step(
+        self,
+        state: PhysicsState,
+        ctrl: jax.Array,
+        mocap: tuple[jax.Array, jax.Array] | None = None,
+    ) -> PhysicsState:
+        names = tuple(sorted(state.fields))
+        extra = [] if mocap is None else [m.astype(jnp.float32) for m in mocap]
         out = jax.pure_callback(
-            self._host_step,
+            functools.partial(self._host_step, names, mocap is not None),
             self._result_shapes(()),
             state.data,
             ctrl.astype(jnp.float32),
+            *extra,
+            *(state.fields[k] for k in names),
             vmap_method="broadcast_all",
         )
-        new = self._pack(out)
+        new = self._pack(out, state.fields)
         q = new.quantities
         return new.replace(quantities=q.replace(ok=q.ok & state.quantities.ok))
 

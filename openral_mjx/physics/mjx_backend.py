@@ -19,6 +19,8 @@ from openral_mjx.physics.base import (
     PhysicsState,
     Quantities,
     all_finite,
+    check_fields,
+    mat_to_quat,
 )
 
 
@@ -37,6 +39,7 @@ class MjxBackend(PhysicsBackend):
         self.mx = self._put_model()
         self._body_ids = jnp.asarray(self.body_ids, dtype=jnp.int32)
         self._site_ids = jnp.asarray(self.site_ids, dtype=jnp.int32)
+        self._geom_ids = jnp.asarray(self.geom_ids, dtype=jnp.int32)
         self._qpos0 = jnp.asarray(self.mj_model.qpos0, dtype=jnp.float32)
 
     def _put_model(self) -> mjx.Model:
@@ -58,25 +61,41 @@ class MjxBackend(PhysicsBackend):
             body_pos=d.xpos[self._body_ids],
             body_quat=d.xquat[self._body_ids],
             site_pos=d.site_xpos[self._site_ids],
+            geom_pos=d.geom_xpos[self._geom_ids],
+            geom_quat=mat_to_quat(d.geom_xmat[self._geom_ids]),
             ok=self._data_ok(d),
             sensors=self.read_sensors(d.xpos, d.xquat),
         )
         return d, q
 
-    def init(self, qpos: jax.Array, qvel: jax.Array) -> PhysicsState:
+    def model(self, fields: dict[str, jax.Array]) -> mjx.Model:
+        """The MJX model with this env's `fields` (under `vmap`, a batched model: MJX reads
+        per-env values of those fields like MuJoCo Playground's domain randomisation)."""
+        return self.mx.replace(**fields) if fields else self.mx
+
+    def init(
+        self, qpos: jax.Array, qvel: jax.Array, fields: dict[str, jax.Array] | None = None
+    ) -> PhysicsState:
+        fields = dict(fields or {})
+        check_fields(fields)
         # Kinematics alone yields every quantity task logic reads (poses); the first step
         # recomputes the rest (`mj_step` begins with a full forward pass), so the trajectory is
         # the same as after `mjx.forward`, which would double the traced physics and add
         # seconds to every compile.
         d = self._make_data().replace(qpos=qpos, qvel=qvel)
-        d, q = self._readout(self._kinematics(d))
-        return PhysicsState(data=d, quantities=q)
+        d, q = self._readout(self._kinematics(self.model(fields), d))
+        return PhysicsState(data=d, quantities=q, fields=fields)
 
-    def _kinematics(self, d: mjx.Data) -> mjx.Data:
+    def _kinematics(self, mx: mjx.Model, d: mjx.Data) -> mjx.Data:
         """Poses from joint positions (what `init` reports before the first step)."""
-        return mjx.kinematics(self.mx, d)
+        return mjx.kinematics(mx, d)
 
-    def step(self, state: PhysicsState, ctrl: jax.Array) -> PhysicsState:
+    def step(
+        self,
+        state: PhysicsState,
+        ctrl: jax.Array,
+        mocap: tuple[jax.Array, jax.Array] | None = None,
+    ) -> PhysicsState:
         # A diverged env (already counted a failure) is parked at the reference pose, so its
         # garbage cannot spread, e.g. into Warp's contact buffer shared by the batch.
         d, ok = state.data, state.quantities.ok
@@ -86,6 +105,11 @@ class MjxBackend(PhysicsBackend):
             qacc_warmstart=jnp.where(ok, d.qacc_warmstart, 0.0),
             ctrl=ctrl,
         )
-        d = jax.lax.fori_loop(0, self.n_substeps, lambda _, x: mjx.step(self.mx, x), d)
+        if mocap is not None:
+            d = d.replace(mocap_pos=mocap[0], mocap_quat=mocap[1])
+        mx = self.model(state.fields)
+        d = jax.lax.fori_loop(0, self.n_substeps, lambda _, x: mjx.step(mx, x), d)
         d, q = self._readout(d)
-        return PhysicsState(data=d, quantities=q.replace(ok=q.ok & state.quantities.ok))
+        return PhysicsState(
+            data=d, quantities=q.replace(ok=q.ok & state.quantities.ok), fields=state.fields
+        )

@@ -94,8 +94,8 @@ class WarpBackend(MjxBackend):
             device=self.home_device(),
         )
 
-    def _kinematics(self, d: mjx.Data) -> mjx.Data:
-        d = super()._kinematics(d)
+    def _kinematics(self, mx: mjx.Model, d: mjx.Data) -> mjx.Data:
+        d = super()._kinematics(mx, d)
         return d if self.cameras is None else self.cameras.place_cameras(d)
 
     def _readout(self, d: mjx.Data) -> tuple[mjx.Data, Quantities]:

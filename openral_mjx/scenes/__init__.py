@@ -17,6 +17,7 @@ from openral_mjx.scenes.base import Scene, State
 from openral_mjx.scenes.libero import LiberoOptions, libero, suite_tasks
 from openral_mjx.scenes.metaworld import MetaWorldOptions, metaworld
 from openral_mjx.scenes.metaworld import suite_tasks as metaworld_suite_tasks
+from openral_mjx.scenes.metaworld_mjx import MetaWorldMjx, MetaWorldMjxOptions
 from openral_mjx.scenes.point_reach import PointReachOptions, point_reach
 from openral_mjx.scenes.pusht import PushTOptions, pusht
 from openral_mjx.scenes.robosuite_scene import RobosuiteOptions, robosuite
@@ -60,6 +61,9 @@ SCENES.register("metaworld")(
     SceneEntry(
         MetaWorldOptions, metaworld, "sawyer", backends=("host",), suites=metaworld_suite_tasks
     )
+)
+SCENES.register("metaworld_mjx")(
+    SceneEntry(MetaWorldMjxOptions, MetaWorldMjx, "sawyer", suites=metaworld_suite_tasks)
 )
 SCENES.register("pusht")(SceneEntry(PushTOptions, pusht, "pusht_agent", backends=("host",)))
 SCENES.register("aloha")(

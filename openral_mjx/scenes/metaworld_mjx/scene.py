@@ -1,0 +1,264 @@
+"""`metaworld_mjx`: a MetaWorld v3 task mirrored on our backends (`mjx`, `warp`, `c`).
+
+The model is MetaWorld's own XML (`assets`), the task logic is ours in JAX (`task`, `tasks/`);
+the `metaworld` host scene runs the original, and the agreement tests and report compare the
+two on the same initial states. What the scene reproduces of MetaWorld's `SawyerXYZEnv`:
+
+- **Reset**: MetaWorld moves the hand to ``hand_init_pos`` with 50 mocap-driven control steps
+  from the model's default state before placing anything; that state does not depend on the
+  episode (the objects sit at their defaults, out of the hand's way), so it is simulated once
+  here with MuJoCo C and every reset starts from it. The random vector is drawn uniformly from
+  the task's ``_random_reset_space`` with the episode's key (the first of 32 draws that the
+  task's `accept` keeps: MetaWorld redraws the same way), then the task places the objects.
+  MetaWorld's numpy generator is not reproduced: seed s gives the same episode here on every
+  run, and the agreement tests hand the host env the mirror's random vector.
+- **Action**: 4-D in [-1, 1]: the mocap target moves by ``action[:3] / 100``, clipped to the
+  task's mocap box, with the hand's fixed orientation; the gripper's two actuators get
+  ``(a[3], -a[3])``; 5 physics steps of 2.5 ms per control step.
+- **Observation**: MetaWorld's 39 floats: hand position, gripper opening, the objects' poses
+  (padded to 14), the previous step's 18, and the goal (zeros when not observable), clipped to
+  MetaWorld's observation box after every step (not at reset, as MetaWorld).
+- **Success**: the task's predicate, which ends the episode; MetaWorld's limit is 500 steps.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import mujoco
+import numpy as np
+
+from openral_mjx.physics import (
+    PhysicsSettings,
+    PhysicsState,
+    QuantitySpec,
+    make_backend,
+    resolve_backend_name,
+)
+from openral_mjx.scenes.base import Scene, State, obs_slices
+from openral_mjx.scenes.composition import cylinders_as_prisms
+from openral_mjx.scenes.metaworld_mjx import task as mw
+from openral_mjx.scenes.metaworld_mjx.assets import load_spec
+from openral_mjx.scenes.metaworld_mjx.options import MetaWorldMjxOptions
+from openral_mjx.scenes.metaworld_mjx.tasks import TASKS
+
+N_DRAWS = 32  # candidate random vectors per reset; P(no draw accepted) is negligible
+OBS_SIZES = {"hand": 3, "gripper": 1, "objects": 14, "prev": 18, "goal": 3}
+_MOCAP_QUAT = np.asarray(mw.MOCAP_QUAT) / np.linalg.norm(mw.MOCAP_QUAT)
+
+
+def hand_reset_state(spec: mujoco.MjSpec, hand_init_pos: tuple[float, ...]) -> mujoco.MjData:
+    """MetaWorld's ``_reset_hand`` from the model's default state, in MuJoCo C (float64)."""
+    m = spec.copy().compile()
+    d = mujoco.MjData(m)
+    mujoco.mj_resetData(m, d)
+    mocap = m.body_mocapid[m.body("mocap").id]
+    for _ in range(mw.HAND_RESET_STEPS):
+        d.mocap_pos[mocap] = hand_init_pos
+        d.mocap_quat[mocap] = mw.MOCAP_QUAT
+        d.ctrl[:] = (-1.0, 1.0)
+        mujoco.mj_step(m, d, nstep=mw.FRAME_SKIP)
+    mujoco.mj_forward(m, d)
+    return d
+
+
+def model_facts(spec: mujoco.MjSpec, task: mw.MirrorTask) -> tuple[mw.ModelFacts, Any]:
+    """The task's `ModelFacts` and the hand-reset MjData they were read from."""
+    m = spec.copy().compile()
+    d = hand_reset_state(spec, task.hand_init_pos)
+    rest: dict[str, np.ndarray] = {}
+    for i in range(m.nbody):
+        rest[f"body:{m.body(i).name}"] = d.xpos[i].copy()
+    for i in range(m.nsite):
+        rest[f"site:{m.site(i).name}"] = d.site_xpos[i].copy()
+    for i in range(m.ngeom):
+        if m.geom(i).name:
+            rest[f"geom:{m.geom(i).name}"] = d.geom_xpos[i].copy()
+    joints = [m.joint(i) for i in range(m.njnt)]
+    facts = mw.ModelFacts(
+        qpos_adr={j.name: int(j.qposadr[0]) for j in joints},
+        dof_adr={j.name: int(j.dofadr[0]) for j in joints},
+        body_pos={m.body(i).name: m.body_pos[i].copy() for i in range(m.nbody)},
+        site_pos={m.site(i).name: m.site_pos[i].copy() for i in range(m.nsite)},
+        rest=rest,
+        qpos0=m.qpos0.copy(),
+    )
+    return facts, d
+
+
+class MetaWorldMjx(Scene):
+    """One MetaWorld v3 task on a MuJoCo backend (see the module docstring)."""
+
+    name = "metaworld_mjx"
+    robot_name = "sawyer"
+
+    def __init__(
+        self,
+        options: MetaWorldMjxOptions | None = None,
+        *,
+        backend: str = "auto",
+        settings: PhysicsSettings | None = None,
+    ) -> None:
+        self.options = o = options or MetaWorldMjxOptions()
+        self.task = o.task
+        self.logic = t = TASKS[o.task]
+        self.spec = load_spec(t.xml)
+        # MJX's JAX implementation has no cylinder-box pair: its copy of the model collides
+        # through 16-gon prisms instead (the agreement table reports that backend separately).
+        self.prisms = 0
+        if resolve_backend_name(backend) == "mjx":
+            self.prisms = cylinders_as_prisms(self.spec)
+        self.facts, rest = model_facts(self.spec, t)
+        m = self.spec.copy().compile()
+        bodies = tuple(dict.fromkeys((*mw.COMMON_BODIES, *t.bodies, *t.moved_bodies)))
+        sites = tuple(dict.fromkeys((*mw.COMMON_SITES, *t.sites)))
+        geoms = tuple(dict.fromkeys(t.geoms))
+        self.backend = make_backend(
+            backend, self.spec, QuantitySpec(bodies, sites, geoms=geoms), mw.FRAME_SKIP, settings
+        )
+        self._names = (
+            {n: i for i, n in enumerate(bodies)},
+            {n: i for i, n in enumerate(sites)},
+            {n: i for i, n in enumerate(geoms)},
+            dict(self.facts.qpos_adr),
+        )
+        self._qpos = jnp.asarray(rest.qpos, jnp.float32)
+        self._qvel = jnp.asarray(rest.qvel, jnp.float32)
+        mocap = m.body_mocapid[m.body("mocap").id]
+        self._mocap_id = int(mocap)
+        self._mocap_start = jnp.asarray(rest.mocap_pos, jnp.float32)
+        self._moved_ids = np.array([m.body(b).id for b in t.moved_bodies], np.int64)
+        self._body_pos = jnp.asarray(m.body_pos, jnp.float32)
+        low = t.mocap_low if t.mocap_low is not None else t.hand_low
+        high = t.mocap_high if t.mocap_high is not None else t.hand_high
+        self._mocap_box = (jnp.asarray(low, jnp.float32), jnp.asarray(high, jnp.float32))
+        self._layout = obs_slices(OBS_SIZES)
+        obs_low = np.full(39, -np.inf, np.float32)
+        obs_high = np.full(39, np.inf, np.float32)
+        for start in (0, 18):
+            obs_low[start : start + 3], obs_high[start : start + 3] = (
+                mw.HAND_SPACE_LOW,
+                mw.HAND_SPACE_HIGH,
+            )
+            obs_low[start + 3], obs_high[start + 3] = -1.0, 1.0
+        if o.goal_observable:
+            obs_low[36:], obs_high[36:] = t.goal_low, t.goal_high
+        else:
+            obs_low[36:], obs_high[36:] = 0.0, 0.0
+        self._obs_box = (jnp.asarray(obs_low), jnp.asarray(obs_high))
+
+    # ---- layout ---------------------------------------------------------------------------
+
+    @property
+    def obs_layout(self) -> dict[str, tuple[int, int]]:
+        return dict(self._layout)
+
+    @property
+    def action_size(self) -> int:
+        return 4
+
+    def action_bounds(self) -> tuple[jax.Array, jax.Array]:
+        return -jnp.ones(4, jnp.float32), jnp.ones(4, jnp.float32)
+
+    # ---- reset ----------------------------------------------------------------------------
+
+    def draw(self, key: jax.Array) -> jax.Array:
+        """The episode's random vector: the first of `N_DRAWS` uniform draws the task keeps."""
+        t = self.logic
+        low, high = jnp.asarray(t.reset_low), jnp.asarray(t.reset_high)
+        vecs = jax.random.uniform(key, (N_DRAWS, low.shape[0]), minval=low, maxval=high)
+        ok = jax.vmap(t.accept)(vecs)
+        return vecs[jnp.argmax(ok)]
+
+    def reset(self, key: jax.Array) -> State:
+        return self.reset_from(self.draw(key))
+
+    def reset_from(self, vec: jax.Array) -> State:
+        """The episode that MetaWorld's reset builds from random vector `vec`."""
+        t = self.logic
+        vec = jnp.asarray(vec, jnp.float32)
+        qpos, qvel, moved = t.place(self.facts, vec, self._qpos, self._qvel)
+        fields = {}
+        if t.moved_bodies:
+            pos = jnp.stack([moved[b] for b in t.moved_bodies]).astype(jnp.float32)
+            fields = {"body_pos": self._body_pos.at[self._moved_ids].set(pos)}
+        physics = self.backend.init(qpos, qvel, fields=fields)
+        view = self._view(physics)
+        episode = t.episode(self.facts, vec, view)
+        curr = self._current(view)
+        obs = jnp.concatenate([curr, curr, self._goal(episode)])
+        info = {
+            "vec": vec,
+            "episode": episode,
+            "mocap_pos": self._mocap_start,
+            "prev": curr,
+        }
+        metrics = {"success": jnp.zeros((), bool), "diverged": ~physics.quantities.ok}
+        return State(
+            physics=physics,
+            obs=obs.astype(jnp.float32),
+            reward=jnp.zeros((), jnp.float32),
+            done=jnp.zeros((), bool),
+            metrics=metrics,
+            info=info,
+        )
+
+    def episode_factors(self, state: State) -> dict[str, jax.Array]:
+        """The drawn object and goal positions (MetaWorld's random vector, first 6)."""
+        vec = state.info["vec"]
+        names = ("obj_x", "obj_y", "obj_z", "goal_x", "goal_y", "goal_z")
+        return {n: vec[i] for i, n in enumerate(names) if i < vec.shape[0]}
+
+    # ---- step -----------------------------------------------------------------------------
+
+    def step(self, state: State, action: jax.Array) -> State:
+        a = jnp.clip(action.astype(jnp.float32), -1.0, 1.0)
+        low, high = self._mocap_box
+        mocap = state.info["mocap_pos"]
+        target = jnp.clip(mocap[self._mocap_id] + a[:3] * mw.ACTION_SCALE, low, high)
+        mocap = mocap.at[self._mocap_id].set(target)
+        quat = jnp.broadcast_to(jnp.asarray(_MOCAP_QUAT, jnp.float32), (mocap.shape[0], 4))
+        ctrl = jnp.stack([a[3], -a[3]])
+        physics = self.backend.step(state.physics, ctrl, mocap=(mocap, quat))
+        view = self._view(physics)
+        episode = state.info["episode"]
+        curr = self._current(view)
+        obs = jnp.concatenate([curr, state.info["prev"], self._goal(episode)])
+        obs = jnp.clip(obs, *self._obs_box)
+        diverged = ~physics.quantities.ok
+        success = self.logic.success(obs, view, episode) & ~diverged
+        reward = jnp.where(diverged, 0.0, self.logic.reward(obs, view, episode, a))
+        return state.replace(
+            physics=physics,
+            obs=jnp.where(diverged, 0.0, obs).astype(jnp.float32),
+            reward=reward.astype(jnp.float32),
+            done=success | diverged,
+            metrics={"success": success, "diverged": diverged},
+            info={**state.info, "mocap_pos": mocap, "prev": curr},
+        )
+
+    # ---- observation ----------------------------------------------------------------------
+
+    def _view(self, physics: PhysicsState) -> mw.View:
+        return mw.View(physics.quantities, *self._names)
+
+    def _current(self, view: mw.View) -> jax.Array:
+        """MetaWorld's ``_get_curr_obs_combined_no_goal`` (18 floats)."""
+        gap = jnp.linalg.norm(view.body_pos("rightclaw") - view.body_pos("leftclaw"))
+        pos, quat = self.logic.objects(view)
+        objects = jnp.concatenate([pos, quat]) if pos.shape[0] == 3 else _interleave(pos, quat)
+        objects = jnp.pad(objects, (0, mw.OBS_OBJ_MAX_LEN - objects.shape[0]))
+        return jnp.concatenate([view.hand, jnp.clip(gap / 0.1, 0.0, 1.0)[None], objects])
+
+    def _goal(self, episode: dict[str, jax.Array]) -> jax.Array:
+        if not self.options.goal_observable:
+            return jnp.zeros(3, jnp.float32)
+        return episode["target_pos"].astype(jnp.float32)
+
+
+def _interleave(pos: jax.Array, quat: jax.Array) -> jax.Array:
+    """(p1, q1, p2, q2, ...) from flat positions and quaternions, as MetaWorld stacks them."""
+    n = pos.shape[0] // 3
+    return jnp.concatenate([pos.reshape(n, 3), quat.reshape(n, 4)], axis=1).reshape(-1)

@@ -1,0 +1,209 @@
+"""What a MetaWorld mirror task is: MetaWorld's facts for one task, and its logic in pure JAX.
+
+A `MirrorTask` states the facts read from MetaWorld 3.1.1's source for one v3 task (its XML,
+the hand's start, the box its random vector is drawn from, the goal box the observation is
+clipped to) and reimplements the task's logic, one env, in JAX:
+
+- `accept(vec)`: whether MetaWorld's reset would keep a drawn random vector (several tasks
+  redraw while the object is too near the goal); the scene keeps the first accepted draw.
+- `place(facts, vec, qpos, qvel)`: the initial condition from the vector, applied to the state
+  after MetaWorld's hand reset: joint positions and velocities (as its ``_set_obj_xyz`` /
+  ``set_state`` calls do), and the per-episode positions of fixed bodies it writes into the
+  model (``self.model.body("box").pos = ...``).
+- `episode(facts, vec, view)`: per-episode constants read after that placement (MetaWorld reads
+  some from the placed kinematics, e.g. ``_target_pos = self._get_site_pos("hole")``); must hold
+  ``target_pos``, the goal MetaWorld observes and rewards against.
+- `objects(view)`: MetaWorld's ``_get_pos_objects`` and ``_get_quat_objects`` (flat position(s)
+  and quaternion(s), in the convention MetaWorld uses for that task: ``xquat`` is w-x-y-z,
+  scipy's ``Rotation.as_quat`` is x-y-z-w).
+- `success(obs, view, episode)`: ``info["success"]`` of MetaWorld's ``evaluate_state``.
+- `reward(...)`: MetaWorld's v2 reward where ported; else 0 (`has_reward` False).
+
+`View` reads the physics quantities by name; a task lists the bodies, sites and geoms it reads
+in `bodies`, `sites`, `geoms` (the hand, claws and pads are always there).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping
+from typing import Any, ClassVar
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from openral_mjx.physics.base import Quantities
+
+Vec = tuple[float, ...]
+
+# MetaWorld's SawyerXYZEnv constants.
+HAND_SPACE_LOW = (-0.525, 0.348, -0.0525)
+HAND_SPACE_HIGH = (0.525, 1.025, 0.7)
+MOCAP_QUAT = (1.0, 0.0, 1.0, 0.0)  # set_xyz_action writes it unnormalised; MuJoCo normalises
+ACTION_SCALE = 1.0 / 100
+FRAME_SKIP = 5
+HAND_RESET_STEPS = 50
+MAX_PATH_LENGTH = 500
+OBS_OBJ_MAX_LEN = 14
+# Bodies and sites every task's observation or logic reads.
+COMMON_BODIES = ("hand", "rightclaw", "leftclaw")
+COMMON_SITES = ("rightEndEffector", "leftEndEffector")
+
+
+@dataclasses.dataclass(frozen=True)
+class ModelFacts:
+    """Static facts of the compiled task model (numpy), for `place` and `episode`.
+
+    `rest` holds world positions in the state right after MetaWorld's hand reset (objects still
+    at the model's defaults): ``rest["body:obj"]``, ``rest["site:hole"]``, ``rest["geom:objGeom"]``
+    (what ``get_body_com`` / ``_get_site_pos`` / ``data.geom(...).xpos`` return there).
+    """
+
+    qpos_adr: Mapping[str, int]  # joint name -> first qpos index
+    dof_adr: Mapping[str, int]  # joint name -> first dof index
+    body_pos: Mapping[str, np.ndarray]  # body name -> model default `body_pos` (parent frame)
+    site_pos: Mapping[str, np.ndarray]  # site name -> model default `site_pos` (parent frame)
+    rest: Mapping[str, np.ndarray]
+    qpos0: np.ndarray
+
+
+class View:
+    """Named reads of one env's `Quantities` (world frame, float32)."""
+
+    def __init__(
+        self,
+        q: Quantities,
+        bodies: Mapping[str, int],
+        sites: Mapping[str, int],
+        geoms: Mapping[str, int],
+        qpos_adr: Mapping[str, int],
+    ) -> None:
+        self.q = q
+        self._bodies, self._sites, self._geoms, self._qpos_adr = bodies, sites, geoms, qpos_adr
+
+    def body_pos(self, name: str) -> jax.Array:
+        """``data.body(name).xpos`` (= gymnasium's ``get_body_com(name)``)."""
+        return self.q.body_pos[self._bodies[name]]
+
+    def body_quat(self, name: str) -> jax.Array:
+        """``data.body(name).xquat`` (w, x, y, z)."""
+        return self.q.body_quat[self._bodies[name]]
+
+    def site_pos(self, name: str) -> jax.Array:
+        """``data.site(name).xpos`` (MetaWorld's ``_get_site_pos``)."""
+        return self.q.site_pos[self._sites[name]]
+
+    def geom_pos(self, name: str) -> jax.Array:
+        """``data.geom(name).xpos``."""
+        return self.q.geom_pos[self._geoms[name]]
+
+    def geom_quat(self, name: str) -> jax.Array:
+        """The geom's world orientation as a w-x-y-z quaternion (from ``data.geom(name).xmat``)."""
+        return self.q.geom_quat[self._geoms[name]]
+
+    def qpos(self, joint: str, size: int = 1) -> jax.Array:
+        """``data.qpos`` of `joint` (`size` entries from its address; scalar for size 1)."""
+        a = self._qpos_adr[joint]
+        return self.q.qpos[a] if size == 1 else self.q.qpos[a : a + size]
+
+    @property
+    def hand(self) -> jax.Array:
+        """MetaWorld's ``get_endeff_pos``: the ``hand`` body's position."""
+        return self.body_pos("hand")
+
+    @property
+    def tcp_center(self) -> jax.Array:
+        """MetaWorld's ``tcp_center``: midway between the two end-effector sites."""
+        return (self.site_pos("rightEndEffector") + self.site_pos("leftEndEffector")) / 2.0
+
+
+def matrix_quat(wxyz: jax.Array) -> jax.Array:
+    """scipy's ``Rotation.from_matrix(R).as_quat()`` (x-y-z-w) for the rotation `wxyz`.
+
+    scipy converts a matrix with Shepperd's method: it picks the largest of (trace, R00, R11,
+    R22) and builds the quaternion from that branch, whose leading component is positive. The
+    result is the rotation's quaternion with the sign that makes that component positive, so
+    the same sign rule applied to `wxyz` reproduces scipy's output (up to rounding).
+    """
+    w, x, y, z = wxyz[0], wxyz[1], wxyz[2], wxyz[3]
+    r00 = 1 - 2 * (y * y + z * z)
+    r11 = 1 - 2 * (x * x + z * z)
+    r22 = 1 - 2 * (x * x + y * y)
+    trace = r00 + r11 + r22
+    branch = jnp.argmax(jnp.stack([r00, r11, r22, trace]))
+    lead = jnp.stack([x, y, z, w])[branch]
+    xyzw = jnp.stack([x, y, z, w])
+    return jnp.where(lead < 0, -xyzw, xyzw)
+
+
+def set_obj_xyz(
+    facts: ModelFacts, qpos: jax.Array, qvel: jax.Array, pos: jax.Array, joint: str = "objjoint"
+) -> tuple[jax.Array, jax.Array]:
+    """MetaWorld's ``_set_obj_xyz`` for a free joint: position set, its 6 velocities zeroed."""
+    a, d = facts.qpos_adr[joint], facts.dof_adr[joint]
+    return qpos.at[a : a + 3].set(pos), qvel.at[d : d + 6].set(0.0)
+
+
+class MirrorTask:
+    """One MetaWorld v3 task (see the module docstring). Subclasses set the class attributes
+    and override the methods whose default does not match MetaWorld's task."""
+
+    name: ClassVar[str]  # "push-v3"
+    xml: ClassVar[str]  # under metaworld/assets, e.g. "sawyer_xyz/sawyer_push_v3.xml"
+    hand_init_pos: ClassVar[Vec]
+    reset_low: ClassVar[Vec]  # `_random_reset_space`
+    reset_high: ClassVar[Vec]
+    goal_low: ClassVar[Vec]  # `goal_space` (clips the goal in the observation)
+    goal_high: ClassVar[Vec]
+    # MetaWorld's `mocap_low` / `mocap_high` where the task sets them (default: hand_low/high)
+    hand_low: ClassVar[Vec] = (-0.5, 0.40, 0.05)
+    hand_high: ClassVar[Vec] = (0.5, 1.0, 0.5)
+    mocap_low: ClassVar[Vec | None] = None
+    mocap_high: ClassVar[Vec | None] = None
+    bodies: ClassVar[tuple[str, ...]] = ()
+    sites: ClassVar[tuple[str, ...]] = ()
+    geoms: ClassVar[tuple[str, ...]] = ()
+    # Fixed bodies whose position the reset writes per episode (`place`'s body_pos keys).
+    moved_bodies: ClassVar[tuple[str, ...]] = ()
+    has_reward: ClassVar[bool] = False
+
+    def accept(self, vec: jax.Array) -> jax.Array:
+        """Whether MetaWorld's reset keeps this random vector (default: always)."""
+        del vec
+        return jnp.ones((), bool)
+
+    def place(
+        self, facts: ModelFacts, vec: jax.Array, qpos: jax.Array, qvel: jax.Array
+    ) -> tuple[jax.Array, jax.Array, dict[str, jax.Array]]:
+        """(qpos, qvel, {moved body: position}) of the episode's start."""
+        raise NotImplementedError
+
+    def episode(self, facts: ModelFacts, vec: jax.Array, view: View) -> dict[str, jax.Array]:
+        """Per-episode constants after placement; must include ``target_pos``."""
+        raise NotImplementedError
+
+    def objects(self, view: View) -> tuple[jax.Array, jax.Array]:
+        """(positions, quaternions) as MetaWorld's ``_get_pos_objects``/``_get_quat_objects``."""
+        raise NotImplementedError
+
+    def success(self, obs: jax.Array, view: View, episode: Mapping[str, Any]) -> jax.Array:
+        """MetaWorld's ``info["success"]`` (bool) for the observation `obs` (39,)."""
+        raise NotImplementedError
+
+    def reward(
+        self, obs: jax.Array, view: View, episode: Mapping[str, Any], action: jax.Array
+    ) -> jax.Array:
+        """MetaWorld's v2 reward (0 where not ported: see `has_reward`)."""
+        del obs, view, episode, action
+        return jnp.zeros((), jnp.float32)
+
+
+def long_tail_tolerance(x: jax.Array, upper: float, margin: jax.Array) -> jax.Array:
+    """MetaWorld's ``reward_utils.tolerance(x, bounds=(0, upper), margin, "long_tail")`` for
+    x >= 0: 1 inside the bounds, else 1 / (d^2 (1/0.1 - 1) + 1) with d = (x - upper) / margin
+    (0.1 at one margin out); with a zero margin, the indicator of the bounds."""
+    inside = x <= upper
+    d = (x - upper) / jnp.where(margin > 0, margin, 1.0)
+    tail = 1.0 / (d * d * (1.0 / 0.1 - 1.0) + 1.0)
+    return jnp.where(inside, 1.0, jnp.where(margin > 0, tail, 0.0))

@@ -1,0 +1,104 @@
+"""reach-v3, push-v3, pick-place-v3: one free puck, a goal drawn with it (MetaWorld 3.1.1).
+
+All three draw (object xyz, goal xyz) and redraw while the object's and the goal's xy are
+closer than 0.15 m; the puck starts at the drawn position. Observed object: the ``obj`` body's
+position and the ``objGeom`` orientation as scipy's quaternion (x-y-z-w).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+
+from openral_mjx.scenes.metaworld_mjx.task import (
+    MirrorTask,
+    ModelFacts,
+    View,
+    long_tail_tolerance,
+    matrix_quat,
+    set_obj_xyz,
+)
+
+
+class _Puck(MirrorTask):
+    """What the three tasks share."""
+
+    hand_init_pos = (0.0, 0.6, 0.2)
+    reset_low = (-0.1, 0.6, 0.02, -0.1, 0.8, 0.05)
+    reset_high = (0.1, 0.7, 0.02, 0.1, 0.9, 0.3)
+    goal_low = (-0.1, 0.8, 0.05)
+    goal_high = (0.1, 0.9, 0.3)
+    bodies = ("obj",)
+    geoms = ("objGeom",)
+
+    def accept(self, vec: jax.Array) -> jax.Array:
+        return jnp.linalg.norm(vec[:2] - vec[3:5]) >= 0.15
+
+    def place(
+        self, facts: ModelFacts, vec: jax.Array, qpos: jax.Array, qvel: jax.Array
+    ) -> tuple[jax.Array, jax.Array, dict[str, jax.Array]]:
+        qpos, qvel = set_obj_xyz(facts, qpos, qvel, self._obj_init(facts, vec))
+        return qpos, qvel, {}
+
+    def _obj_init(self, facts: ModelFacts, vec: jax.Array) -> jax.Array:
+        return vec[:3]
+
+    def episode(self, facts: ModelFacts, vec: jax.Array, view: View) -> dict[str, jax.Array]:
+        return {"target_pos": vec[3:6], "obj_init_pos": self._obj_init(facts, vec)}
+
+    def objects(self, view: View) -> tuple[jax.Array, jax.Array]:
+        return view.body_pos("obj"), matrix_quat(view.geom_quat("objGeom"))
+
+
+class Reach(_Puck):
+    name = "reach-v3"
+    xml = "sawyer_xyz/sawyer_reach_v3.xml"
+    has_reward = True
+
+    def success(self, obs: jax.Array, view: View, episode: Mapping[str, Any]) -> jax.Array:
+        return jnp.linalg.norm(view.tcp_center - episode["target_pos"]) <= 0.05
+
+    def reward(
+        self, obs: jax.Array, view: View, episode: Mapping[str, Any], action: jax.Array
+    ) -> jax.Array:
+        target = episode["target_pos"]
+        margin = jnp.linalg.norm(jnp.asarray(self.hand_init_pos) - target)
+        in_place = long_tail_tolerance(jnp.linalg.norm(view.tcp_center - target), 0.05, margin)
+        return 10.0 * in_place
+
+
+class Push(_Puck):
+    name = "push-v3"
+    xml = "sawyer_xyz/sawyer_push_v3.xml"
+    reset_low = (-0.1, 0.6, 0.02, -0.1, 0.8, 0.01)
+    reset_high = (0.1, 0.7, 0.02, 0.1, 0.9, 0.02)
+    goal_low = (-0.1, 0.8, 0.01)
+    goal_high = (0.1, 0.9, 0.02)
+
+    def _obj_init(self, facts: ModelFacts, vec: jax.Array) -> jax.Array:
+        # `fix_extreme_obj_pos`: the drawn xy at the puck's rest height
+        return jnp.concatenate([vec[:2], jnp.asarray(facts.rest["body:obj"][2:3])])
+
+    def episode(self, facts: ModelFacts, vec: jax.Array, view: View) -> dict[str, jax.Array]:
+        z = jnp.asarray(facts.rest["body:obj"][2:3])
+        return {
+            "target_pos": jnp.concatenate([vec[3:5], z]),
+            "obj_init_pos": self._obj_init(facts, vec),
+        }
+
+    def success(self, obs: jax.Array, view: View, episode: Mapping[str, Any]) -> jax.Array:
+        return jnp.linalg.norm(obs[4:7] - episode["target_pos"]) <= 0.05
+
+
+class PickPlace(_Puck):
+    name = "pick-place-v3"
+    xml = "sawyer_xyz/sawyer_pick_place_v3.xml"
+
+    def success(self, obs: jax.Array, view: View, episode: Mapping[str, Any]) -> jax.Array:
+        return jnp.linalg.norm(obs[4:7] - episode["target_pos"]) <= 0.07
+
+
+TASKS = (Reach(), Push(), PickPlace())

@@ -27,7 +27,7 @@ def test_callback_exception_is_a_clear_error_not_a_hang(push_c):
     state = jax.vmap(push_c.reset)(jax.vmap(jax.random.PRNGKey)(jnp.arange(2)))
     original = push_c.backend._host_step
 
-    def broken(bits, ctrl):
+    def broken(*args):
         raise RuntimeError("simulated worker failure")
 
     push_c.backend._host_step = broken

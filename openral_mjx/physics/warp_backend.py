@@ -16,6 +16,7 @@ import importlib.util
 import jax
 import jax.numpy as jnp
 import mujoco
+import numpy as np
 
 from openral_mjx.core.errors import ConfigError
 from openral_mjx.physics.base import Quantities, all_finite
@@ -72,6 +73,9 @@ class WarpBackend(MjxBackend):
         # Rows per env: a pyramidal friction cone takes 2 (condim - 1) rows per contact (<= 10
         # for condim 6), plus one row per dof for joint limits and one for friction loss.
         self.njmax = 10 * s.contacts_per_env + 2 * m.nv + m.neq * 6
+        body = m.geom_bodyid
+        static = (m.body_weldid[body] == 0) & (m.body_mocapid[body] < 0) & (body > 0)
+        self._static_geoms = np.flatnonzero(static)
         super()._setup(spec)  # puts the model, which needs the overflow mask above
         self.cameras = None
         if self._render_specs:
@@ -96,7 +100,27 @@ class WarpBackend(MjxBackend):
 
     def _kinematics(self, mx: mjx.Model, d: mjx.Data) -> mjx.Data:
         d = super()._kinematics(mx, d)
+        if self._static_geoms.size and mx is not self.mx:
+            d = self._place_static_geoms(mx, d)
         return d if self.cameras is None else self.cameras.place_cameras(d)
+
+    def _place_static_geoms(self, mx: mjx.Model, d: mjx.Data) -> mjx.Data:
+        """World poses of the geoms of bodies welded to the world, from this env's body poses.
+
+        MuJoCo-Warp computes those once, from the shared model, and never again (its docs:
+        per-world `body_pos` is unsafe for static bodies), so with per-env `fields` its
+        collisions would meet every env's fixed bodies where the model has them. The poses of
+        the bodies themselves are per env (kinematics reads the batched fields); the geoms'
+        follow from them here, at `init`, and stay put like the bodies."""
+        g = self._static_geoms
+        b = jnp.asarray(self.mj_model.geom_bodyid[g])
+        xmat = d.xmat[b]
+        pos = d.xpos[b] + jnp.einsum("gij,gj->gi", xmat, mx.geom_pos[g])
+        local = jax.vmap(_quat_to_mat)(mx.geom_quat[g])
+        return d.replace(
+            geom_xpos=d.geom_xpos.at[g].set(pos),
+            geom_xmat=d.geom_xmat.at[g].set(jnp.einsum("gij,gjk->gik", xmat, local)),
+        )
 
     def _readout(self, d: mjx.Data) -> tuple[mjx.Data, Quantities]:
         d, q = super()._readout(d)
@@ -114,7 +138,6 @@ class WarpBackend(MjxBackend):
         step. The kernels take the batch size at run time, so this covers any batch."""
         if self._warm:
             return
-        import numpy as np
 
         m = self.mj_model
         state = jax.jit(jax.vmap(self.init))(
@@ -142,3 +165,15 @@ class WarpBackend(MjxBackend):
             "njmax": self.njmax,
             "batch_size": self.settings.batch_size,
         }
+
+
+def _quat_to_mat(q: jax.Array) -> jax.Array:
+    """A unit quaternion (w, x, y, z) as a rotation matrix."""
+    w, x, y, z = q[0], q[1], q[2], q[3]
+    return jnp.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+        ]
+    )

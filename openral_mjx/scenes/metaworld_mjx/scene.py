@@ -49,6 +49,20 @@ OBS_SIZES = {"hand": 3, "gripper": 1, "objects": 14, "prev": 18, "goal": 3}
 _MOCAP_QUAT = np.asarray(mw.MOCAP_QUAT) / np.linalg.norm(mw.MOCAP_QUAT)
 
 
+def for_mjx(spec: mujoco.MjSpec) -> dict[str, int]:
+    """Make `spec` collide under MJX's JAX implementation, which has no cylinder-box pair and
+    no contact margin on mesh pairs: colliding cylinders become 16-gon prisms, and colliding
+    geoms lose their margin (MetaWorld's claws and pads have 1 mm). Returns what changed; the
+    agreement table measures the effect (``--backend mjx``)."""
+    prisms = cylinders_as_prisms(spec)
+    margins = 0
+    for geom in spec.geoms:
+        if (geom.contype or geom.conaffinity) and (geom.margin or geom.gap):
+            geom.margin, geom.gap = 0.0, 0.0
+            margins += 1
+    return {"cylinders_as_prisms": prisms, "margins_zeroed": margins}
+
+
 def hand_reset_state(spec: mujoco.MjSpec, hand_init_pos: tuple[float, ...]) -> mujoco.MjData:
     """MetaWorld's ``_reset_hand`` from the model's default state, in MuJoCo C (float64)."""
     m = spec.copy().compile()
@@ -105,11 +119,9 @@ class MetaWorldMjx(Scene):
         self.task = o.task
         self.logic = t = TASKS[o.task]
         self.spec = load_spec(t.xml)
-        # MJX's JAX implementation has no cylinder-box pair: its copy of the model collides
-        # through 16-gon prisms instead (the agreement table reports that backend separately).
-        self.prisms = 0
+        self.mjx_changes: dict[str, int] = {}
         if resolve_backend_name(backend) == "mjx":
-            self.prisms = cylinders_as_prisms(self.spec)
+            self.mjx_changes = for_mjx(self.spec)
         self.facts, rest = model_facts(self.spec, t)
         m = self.spec.copy().compile()
         bodies = tuple(dict.fromkeys((*mw.COMMON_BODIES, *t.bodies, *t.moved_bodies)))
@@ -184,6 +196,9 @@ class MetaWorldMjx(Scene):
         if t.moved_bodies:
             pos = jnp.stack([moved[b] for b in t.moved_bodies]).astype(jnp.float32)
             fields = {"body_pos": self._body_pos.at[self._moved_ids].set(pos)}
+        if t.hand_reset_per_episode:
+            hand_qpos, hand_qvel = self._hand_reset(fields)
+            qpos, qvel, _ = t.place(self.facts, vec, hand_qpos, hand_qvel)
         physics = self.backend.init(qpos, qvel, fields=fields)
         view = self._view(physics)
         episode = t.episode(self.facts, vec, view)
@@ -204,6 +219,26 @@ class MetaWorldMjx(Scene):
             metrics=metrics,
             info=info,
         )
+
+    def _hand_reset(self, fields: dict[str, jax.Array]) -> tuple[jax.Array, jax.Array]:
+        """MetaWorld's hand reset simulated with this episode's fixed bodies in place (from
+        the model's default joint state: MetaWorld resets the data before its second, final
+        `reset_model`, whose hand reset sees the bodies the first one moved)."""
+        m = self.mj_model
+        physics = self.backend.init(
+            jnp.asarray(m.qpos0, jnp.float32), jnp.zeros(m.nv, jnp.float32), fields=fields
+        )
+        mocap = self._mocap_start.at[self._mocap_id].set(jnp.asarray(self.logic.hand_init_pos))
+        quat = jnp.broadcast_to(jnp.asarray(_MOCAP_QUAT, jnp.float32), (mocap.shape[0], 4))
+        ctrl = jnp.array([-1.0, 1.0], jnp.float32)
+        physics = jax.lax.fori_loop(
+            0,
+            mw.HAND_RESET_STEPS,
+            lambda _, p: self.backend.step(p, ctrl, mocap=(mocap, quat)),
+            physics,
+        )
+        q = physics.quantities
+        return q.qpos, q.qvel
 
     def episode_factors(self, state: State) -> dict[str, jax.Array]:
         """The drawn object and goal positions (MetaWorld's random vector, first 6)."""

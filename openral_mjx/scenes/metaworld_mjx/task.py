@@ -167,6 +167,9 @@ class MirrorTask:
     # Fixed bodies whose position the reset writes per episode (`place`'s body_pos keys).
     moved_bodies: ClassVar[tuple[str, ...]] = ()
     has_reward: ClassVar[bool] = False
+    # Whether MetaWorld's hand reset meets a body the reset moves (then the hand's start
+    # depends on the episode and is simulated per reset, 250 physics steps, not once).
+    hand_reset_per_episode: ClassVar[bool] = False
 
     def accept(self, vec: jax.Array) -> jax.Array:
         """Whether MetaWorld's reset keeps this random vector (default: always)."""

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from openral_mjx.core.errors import ConfigError
-from openral_mjx.physics import QuantitySpec, make_backend
+from openral_mjx.physics import PhysicsSettings, QuantitySpec, make_backend
 
 XML = """
 <mujoco>
@@ -34,7 +34,8 @@ XML = """
   <actuator><position joint="slide" kp="50"/></actuator>
 </mujoco>
 """
-POSTS = np.array([0.0, 0.08, 0.16])  # post x per env
+# Post x per env: five, so that `c` with one thread steps them in two slices of per-env models.
+POSTS = np.array([0.0, 0.04, 0.08, 0.12, 0.16])
 STEPS, SUBSTEPS = 25, 4
 
 
@@ -64,11 +65,16 @@ def simulate(backend_name: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(ball positions (envs, steps, 3), post positions read back, fields read back)."""
     spec = mujoco.MjSpec.from_string(XML)
     backend = make_backend(
-        backend_name, spec, QuantitySpec(bodies=("ball", "post"), geoms=("ball",)), SUBSTEPS
+        backend_name,
+        spec,
+        QuantitySpec(bodies=("ball", "post"), geoms=("ball",)),
+        SUBSTEPS,
+        PhysicsSettings(threads=1),
     )
     m = backend.mj_model
     body_pos = np.repeat(m.body_pos[None], len(POSTS), 0).astype(np.float32)
-    body_pos[:, m.body("post").id] = np.stack([POSTS, np.zeros(3), np.full(3, 0.1)], 1)
+    k = len(POSTS)
+    body_pos[:, m.body("post").id] = np.stack([POSTS, np.zeros(k), np.full(k, 0.1)], 1)
     qpos = jnp.tile(jnp.asarray(m.qpos0, jnp.float32), (len(POSTS), 1))
     qvel = jnp.zeros((len(POSTS), m.nv), jnp.float32)
     init = jax.jit(jax.vmap(lambda q, v, b: backend.init(q, v, fields={"body_pos": b})))

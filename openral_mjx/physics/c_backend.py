@@ -153,8 +153,11 @@ class CBackend(PhysicsBackend):
         )
 
     def _models(self, n: int, names: tuple[str, ...], values: tuple) -> list[mujoco.MjModel]:
-        """`n` per-env copies of the model with env i's `values` of fields `names` written in
-        (copies are kept and reused; every field named is rewritten each call)."""
+        """`n` model copies with env i's `values` of fields `names` written into copy i.
+
+        Copies are kept and reused (every named field is rewritten each call); a model with
+        meshes copies its mesh data too (MetaWorld's: ~19 MB), so callers step envs with their
+        own fields in slices of `_slice` envs, not all at once."""
         while len(self._env_models) < n:
             self._env_models.append(copy.copy(self._model))
         models = self._env_models[:n]
@@ -164,6 +167,11 @@ class CBackend(PhysicsBackend):
                 getattr(m, name)[:] = v
         return models
 
+    @property
+    def _slice(self) -> int:
+        """Envs per `rollout` call when each has its own model: a few per thread."""
+        return 4 * self.threads
+
     def _host_init(
         self, names: tuple[str, ...], qpos: np.ndarray, qvel: np.ndarray, *values
     ) -> tuple:
@@ -172,12 +180,13 @@ class CBackend(PhysicsBackend):
         qvel = np.asarray(qvel, np.float64).reshape(-1, self.nv)
         n = qpos.shape[0]
         d = mujoco.MjData(self._model)
-        with self._lock:
-            models = self._models(n, names, values) if names else [self._model] * n
         states = np.empty((n, self.nstate))
         sens = np.empty((n, self._nsens))
         for i in range(n):  # reset only, once per chunk: not on the stepping hot path
-            m = models[i]
+            m = self._model
+            if names:
+                with self._lock:
+                    m = self._models(1, names, tuple(np.asarray(v)[i : i + 1] for v in values))[0]
             mujoco.mj_resetData(m, d)
             d.qpos[:], d.qvel[:] = qpos[i], qvel[i]
             mujoco.mj_forward(m, d)
@@ -198,21 +207,40 @@ class CBackend(PhysicsBackend):
             control += [np.asarray(r, np.float64).reshape(n, -1) for r in rest[:2]]
             rest = rest[2:]
         control = np.nan_to_num(np.concatenate(control, axis=1)[:, None, :])
+        spec = _CTRL_MOCAP if mocap else _CTRL
         with self._lock:
-            models = self._models(n, names, rest) if names else self._model
-            out, sens = self._ensure_pool().rollout(
-                models,
-                self._datas,
-                states,
-                control,
-                control_spec=_CTRL_MOCAP if mocap else _CTRL,
-                nstep=self.n_substeps,
-            )
-        last = np.ascontiguousarray(out[:, -1])
+            pool = self._ensure_pool()
+            if not names:
+                out, sens = pool.rollout(
+                    self._model,
+                    self._datas,
+                    states,
+                    control,
+                    control_spec=spec,
+                    nstep=self.n_substeps,
+                )
+                last, sens = out[:, -1], sens[:, -1]
+            else:  # per-env models, a slice of envs at a time (see `_models`)
+                last = np.empty_like(states)
+                sens = np.empty((n, self._nsens))
+                values = [np.asarray(v).reshape(n, -1) for v in rest]
+                for a in range(0, n, self._slice):
+                    b = min(n, a + self._slice)
+                    models = self._models(b - a, names, tuple(v[a:b] for v in values))
+                    out, s_out = pool.rollout(
+                        models,
+                        self._datas,
+                        states[a:b],
+                        control[a:b],
+                        control_spec=spec,
+                        nstep=self.n_substeps,
+                    )
+                    last[a:b], sens[a:b] = out[:, -1], s_out[:, -1]
+        last = np.ascontiguousarray(last)
         # MuJoCo resets a state it finds unstable (time goes back to 0): that env diverged.
         expected = states[:, 0] + self.n_substeps * self._model.opt.timestep
         ok = np.abs(last[:, 0] - expected) < 0.5 * self._model.opt.timestep
-        res = self._readout(last, np.ascontiguousarray(sens[:, -1]), ok)
+        res = self._readout(last, np.ascontiguousarray(sens), ok)
         return tuple(o.reshape(lead + o.shape[1:]) for o in res)
 
     # ---- JAX side --------------------------------------------------------------------------

@@ -1,0 +1,64 @@
+"""basketball-v3: dunk the ball through the hoop (MetaWorld 3.1.1).
+
+The vector is (ball xyz, hoop xyz), redrawn while their xy are closer than 0.15 m. The ball's
+free joint (qpos 9..11) goes to the drawn xy at height 0.03 (MetaWorld's initial height, a
+float32), its velocities zeroed; the ``basket_goal`` body goes to the drawn hoop position. The
+goal is the hoop's ``goal`` site after placement (hoop + (0, -0.083, 0.25)). Observed object:
+the ``bsktball`` body and its ``xquat`` (w-x-y-z). Success: the observed ball within 0.08 of
+the goal raised to z = 0.3, with the z error counted twice.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from openral_mjx.scenes.metaworld_mjx.task import MirrorTask, ModelFacts, View
+
+BALL_QPOS = 9  # MetaWorld's `_set_obj_xyz`: qpos[9:12] = pos, qvel[9:15] = 0
+BALL_Z = float(np.float32(0.03))  # init_config["obj_init_pos"][-1] (a float32 array)
+TARGET_RADIUS = 0.08
+
+
+class Basketball(MirrorTask):
+    name = "basketball-v3"
+    xml = "sawyer_xyz/sawyer_basketball.xml"
+    hand_init_pos = (0.0, 0.6, 0.2)
+    reset_low = (-0.1, 0.6, 0.0299, -0.1, 0.85, 0.0)
+    reset_high = (0.1, 0.7, 0.0301, 0.1, 0.9 + 1e-7, 0.0)
+    goal_low = (-0.1, 0.85 - 0.083, 0.2499)
+    goal_high = (0.1, 0.9 + 1e-7 - 0.083, 0.2501)
+    bodies = ("bsktball",)
+    sites = ("goal",)
+    moved_bodies = ("basket_goal",)
+
+    def accept(self, vec: jax.Array) -> jax.Array:
+        return jnp.linalg.norm(vec[:2] - vec[3:5]) >= 0.15
+
+    def _obj_init(self, vec: jax.Array) -> jax.Array:
+        return jnp.concatenate([vec[:2], jnp.array([BALL_Z])])
+
+    def place(
+        self, facts: ModelFacts, vec: jax.Array, qpos: jax.Array, qvel: jax.Array
+    ) -> tuple[jax.Array, jax.Array, dict[str, jax.Array]]:
+        qpos = qpos.at[BALL_QPOS : BALL_QPOS + 3].set(self._obj_init(vec))
+        qvel = qvel.at[BALL_QPOS : BALL_QPOS + 6].set(0.0)
+        return qpos, qvel, {"basket_goal": vec[3:6]}
+
+    def episode(self, facts: ModelFacts, vec: jax.Array, view: View) -> dict[str, jax.Array]:
+        return {"target_pos": view.site_pos("goal"), "obj_init_pos": self._obj_init(vec)}
+
+    def objects(self, view: View) -> tuple[jax.Array, jax.Array]:
+        return view.body_pos("bsktball"), view.body_quat("bsktball")
+
+    def success(self, obs: jax.Array, view: View, episode: Mapping[str, Any]) -> jax.Array:
+        target = episode["target_pos"].at[2].set(0.3)
+        error = (obs[4:7] - target) * jnp.array([1.0, 1.0, 2.0])
+        return jnp.linalg.norm(error) <= TARGET_RADIUS
+
+
+TASKS = (Basketball(),)

@@ -1,0 +1,59 @@
+"""push-wall-v3, reach-wall-v3: push-v3 and reach-v3 with a wall in the way (MetaWorld 3.1.1).
+
+Both draw (puck xyz, goal xyz), redrawn while their xy are closer than 0.15; the puck's free
+joint goes to the drawn position (velocities zeroed). push-wall places the puck at the drawn
+xy at the ``objGeom`` geom's rest height (`adjust_initObjPos`), the goal at the drawn xy at that
+height; it observes the geom's position. reach-wall places both at the drawn positions and
+observes the ``obj`` body's position; both observe the geom's orientation as scipy's
+quaternion. Success: push-wall, the observed puck within 0.07 of the goal; reach-wall, the tcp
+within 0.05 of the goal (its v2 reward is reach-v3's).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+
+from openral_mjx.scenes.metaworld_mjx.task import ModelFacts, View, matrix_quat
+from openral_mjx.scenes.metaworld_mjx.tasks.reach_push_pick import Push, Reach
+
+
+class PushWall(Push):
+    name = "push-wall-v3"
+    xml = "sawyer_xyz/sawyer_push_wall_v3.xml"
+    reset_low = (-0.05, 0.6, 0.015, -0.05, 0.85, 0.01)
+    reset_high = (0.05, 0.65, 0.015, 0.05, 0.9, 0.02)
+    goal_low = (-0.05, 0.85, 0.01)
+    goal_high = (0.05, 0.9, 0.02)
+
+    def _obj_init(self, facts: ModelFacts, vec: jax.Array) -> jax.Array:
+        # `adjust_initObjPos`: the geom's rest height (body-geom xy offset is zero here)
+        return jnp.concatenate([vec[:2], jnp.asarray(facts.rest["geom:objGeom"][2:3])])
+
+    def episode(self, facts: ModelFacts, vec: jax.Array, view: View) -> dict[str, jax.Array]:
+        z = jnp.asarray(facts.rest["geom:objGeom"][2:3])
+        return {
+            "target_pos": jnp.concatenate([vec[3:5], z]),
+            "obj_init_pos": self._obj_init(facts, vec),
+        }
+
+    def objects(self, view: View) -> tuple[jax.Array, jax.Array]:
+        return view.geom_pos("objGeom"), matrix_quat(view.geom_quat("objGeom"))
+
+    def success(self, obs: jax.Array, view: View, episode: Mapping[str, Any]) -> jax.Array:
+        return jnp.linalg.norm(obs[4:7] - episode["target_pos"]) <= 0.07
+
+
+class ReachWall(Reach):
+    name = "reach-wall-v3"
+    xml = "sawyer_xyz/sawyer_reach_wall_v3.xml"
+    reset_low = (-0.05, 0.6, 0.015, -0.05, 0.85, 0.05)
+    reset_high = (0.05, 0.65, 0.015, 0.05, 0.9, 0.3)
+    goal_low = (-0.05, 0.85, 0.05)
+    goal_high = (0.05, 0.9, 0.3)
+
+
+TASKS = (PushWall(), ReachWall())

@@ -136,7 +136,9 @@ def test_config_errors_are_one_line_and_list_the_valid_names(push_c):
     assert str(e.value) == f"unknown MetaWorld suite 'mt25'; valid: {valid}"
     with pytest.raises(ConfigError, match="max_steps=501"):
         scene_options("metaworld", {"max_steps": 501})
-    with pytest.raises(ConfigError, match="runs on --scene metaworld or metaworld_mjx, not 'tabletop_push'"):
+    with pytest.raises(
+        ConfigError, match="runs on --scene metaworld or metaworld_mjx, not 'tabletop_push'"
+    ):
         make_policy("metaworld-expert", push_c)
     no_expert = make_scene("metaworld", {"expert": False}, backend="host")
     with pytest.raises(ConfigError, match="drop --opt expert=false"):

@@ -117,5 +117,5 @@ def test_unknown_field_is_a_config_error():
     spec = mujoco.MjSpec.from_string(XML)
     backend = make_backend("c", spec, QuantitySpec(bodies=("ball",)), SUBSTEPS)
     m = backend.mj_model
-    with pytest.raises(ConfigError, match="cannot vary per env.*body_pos"):
+    with pytest.raises(ConfigError, match=r"cannot vary per env.*body_pos"):
         backend.init(jnp.asarray(m.qpos0), jnp.zeros(m.nv), fields={"opt_timestep": jnp.ones(())})

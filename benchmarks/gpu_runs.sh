@@ -6,7 +6,27 @@ set -uo pipefail
 out=${OUT:-results/gpu}; mkdir -p "$out"
 TIMEFORMAT='wall %R s'
 ev() { local name=$1; shift; { time python3 -m openral_mjx.eval "$@" --out "$out/$name.json" --no-breakdown; } 2>&1 | grep -v "^  " | tail -4; }
+mw_tasks() { python3 -c "from openral_mjx.scenes import scene_suite as s; print(*s('metaworld_mjx', '${SUITE:-mt10}'))"; }
 case ${1:?stage} in
+  mw-mirror)   # issue 20: MetaWorld mirror, SUITE (mt10) or TASKS x 1,000 seeds, JAX MLP in the loop
+    for t in ${TASKS:-$(mw_tasks)}; do  # one process per task (compiled models freed between)
+      python3 benchmarks/metaworld_mirror.py mirror --tasks "$t" --backend ${BACKEND:-warp} \
+        --seeds 1000 --out "$out/metaworld_mirror.jsonl" | tail -1 | cut -c1-200
+    done ;;
+  mw-host)     # issue 20: MetaWorld itself on all cores, same tasks (its mujoco 3.3.0, .gpumw)
+    python3 benchmarks/metaworld_mirror.py host --tasks ${TASKS:-$(mw_tasks)} --seeds 32 \
+      --workers "$(nproc)" --out "$out/metaworld_host.jsonl" | tail -2 | cut -c1-200
+    python3 benchmarks/metaworld_mirror.py host-direct --tasks ${TASKS:-$(mw_tasks)} --seeds 64 \
+      --workers "$(nproc)" --out "$out/metaworld_host.jsonl" | tail -2 | cut -c1-200 ;;
+  mw-raw)      # issue 20: evaluator vs raw physics on the mirror, per task group
+    for t in ${TASKS:-reach-v3 push-v3 door-open-v3}; do
+      python3 benchmarks/metaworld_mirror.py raw --tasks "$t" --backend ${BACKEND:-warp} \
+        --n ${N:-4096 65536} --max-steps ${MAX_STEPS:-500} --out "$out/metaworld_raw.jsonl" | tail -2 | cut -c1-250
+    done ;;
+  mw-agree)    # issue 20: the mirror on the GPU against MetaWorld on the CPU, same seeds
+    python3 -m openral_mjx.evaluation.metaworld_agreement --tasks ${TASKS:-reach-v3 push-v3 \
+      pick-place-v3 door-open-v3 drawer-close-v3} --backend ${BACKEND:-warp} --seeds 500 \
+      --traj-seeds 8 --workers "$(nproc)" --out "$out/metaworld_agreement_gpu.json" ;;
   warp-push)   # issue 7 / 2: tabletop_push on warp vs raw Warp and 16-core C; 100k seeds (issue 6)
     python3 -m openral_mjx.bench --backend warp --n 4096 16384 65536 --out "$out/bench_warp_push.json"
     ev push_warp_100k --backend warp --n-envs 50000 --n-episodes 100000

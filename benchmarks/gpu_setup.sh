@@ -5,10 +5,15 @@
 #   later calls:      source benchmarks/gpu_setup.sh
 set -e
 export PYTHONPATH=/tmp/site:$PWD PYTHONUNBUFFERED=1
-if [ -d .gpu ] && [ ! -f /tmp/site/.gpu-done ]; then
-  python3 -m pip install -q --no-index --no-deps --no-compile --target /tmp/site .gpu/*.whl
-  touch /tmp/site/.gpu-done
-fi
+# .gpu may come split over two calls (.gpu and .gpu2) to make room beside other carried folders.
+for d in .gpu .gpu2; do
+  if [ -d "$d" ] && [ ! -f "/tmp/site/$d-done" ]; then
+    # each set to its own folder, then merged: pip --target skips a package folder that is
+    # already there (mujoco/ holds both mujoco's and mujoco-mjx's files)
+    python3 -m pip install -q --no-index --no-deps --no-compile --target "/tmp/site$d" "$d"/*.whl \
+      && mkdir -p /tmp/site && cp -r "/tmp/site$d"/. /tmp/site/ && touch "/tmp/site/$d-done"
+  fi
+done
 if [ -n "${WARP_PART:-}" ]; then
   mkdir -p /tmp/warp-parts && cp .warp"$WARP_PART"/* /tmp/warp-parts/
 fi
@@ -18,4 +23,13 @@ if [ -f /tmp/warp-parts/NAME ] && [ -f /tmp/warp-parts/part.00 ] && [ -f /tmp/wa
    && python3 -m pip install -q --no-index --no-deps --no-compile --target /tmp/site "$(cat NAME)")
   touch /tmp/site/.warp-done
 fi
+# MetaWorld itself (mujoco 3.3.0) for the host baseline and the mirror's assets: carry .gpumw
+# (see benchmarks/metaworld_mirror.py). Its packages go to /tmp/mwsite, put first on the path
+# of the system's python (numpy, scipy) by a wrapper: the worker environment's interpreter.
+if [ -d .gpumw ] && [ ! -f /tmp/mwsite/.done ]; then
+  python3 -m pip install -q --no-index --no-deps --no-compile --target /tmp/mwsite .gpumw/*.whl \
+    && printf '#!/bin/sh\nexport PYTHONPATH=/tmp/mwsite${PYTHONPATH:+:$PYTHONPATH}\nexec python3 "$@"\n' \
+      > /tmp/mwpython && chmod +x /tmp/mwpython && touch /tmp/mwsite/.done
+fi
+[ -f /tmp/mwsite/.done ] && export OPENRAL_MJX_PYTHON_METAWORLD=/tmp/mwpython
 set +e

@@ -1,0 +1,262 @@
+"""MetaWorld natively (`metaworld_mjx`) against MetaWorld itself on the CPU, and against the raw
+physics ceiling (issue 20's speed figures).
+
+    python benchmarks/metaworld_mirror.py mirror --tasks mt50 --backend warp --seeds 1000
+    python benchmarks/metaworld_mirror.py host --tasks mt50 --seeds 32 --workers 16
+    python benchmarks/metaworld_mirror.py raw --tasks reach-v3 push-v3 --backend warp --n 4096 65536
+
+`mirror`: per task, `--seeds` episodes (seeds 0..) at once with a JAX MLP (3 x 256 SiLU, random
+weights, fused in the episode's scan) on the mirror; episodes/s from the run time (compile
+excluded, reported apart). `host`: the same number of tasks through the `metaworld` host scene
+(MetaWorld's gymnasium env in `--workers` processes, uniform random actions: the policy's cost
+is nothing beside MetaWorld's step), episodes/s over the whole run. Random weights and random
+actions both fail almost always, so every episode runs MetaWorld's full 500 steps on both sides.
+`host-direct`: MetaWorld alone, whole episodes inside the worker processes (no per-step
+exchange), the simulator's own speed on those cores. `raw`: the evaluator (same MLP) against a
+bare `vmap(scan(mjx.step))` on the task's model with each env's own fixed bodies, replaying the
+evaluator's mocap targets and gripper controls from the same reset states.
+JSON lines go to `--out` (appended), one per task.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from openral_mjx.evaluation import build_scene, run_evaluation
+from openral_mjx.policies.mlp import MlpConfig, init_params, mlp_policy
+from openral_mjx.runner import run_seeds
+from openral_mjx.scenes import scene_suite
+from openral_mjx.scenes.metaworld_mjx import task as mw
+
+HIDDEN = (256, 256, 256)
+
+
+def tasks_of(names: list[str]) -> list[str]:
+    out: list[str] = []
+    for name in names:
+        out += scene_suite("metaworld_mjx", name) if not name.endswith("-v3") else [name]
+    return out
+
+
+def mlp(scene):
+    config = MlpConfig(
+        obs_size=39,
+        action_size=4,
+        action_offset=(0.0,) * 4,
+        action_scale=(1.0,) * 4,
+        hidden=HIDDEN,
+    )
+    return mlp_policy(config, init_params(config, jax.random.PRNGKey(0)))
+
+
+def emit(out: Path | None, row: dict) -> None:
+    print(json.dumps(row), flush=True)
+    if out is not None:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        with out.open("a") as f:
+            f.write(json.dumps(row) + "\n")
+
+
+def mirror(args: argparse.Namespace) -> None:
+    for task in tasks_of(args.tasks):
+        t = time.perf_counter()
+        scene = build_scene(
+            "metaworld_mjx", {"task": task}, backend=args.backend, n_envs=args.seeds
+        )
+        built = time.perf_counter() - t
+        with run_evaluation(
+            scene, mlp(scene), n_envs=args.seeds, n_episodes=args.seeds, batching="chunks"
+        ) as ev:
+            r = ev.report
+            emit(
+                args.out,
+                {
+                    "kind": "mirror",
+                    "task": task,
+                    "backend": args.backend,
+                    "device": str(jax.devices()[0].device_kind),
+                    "episodes": r.n_episodes,
+                    "success_rate": r.success_rate,
+                    "diverged": r.diverged,
+                    "episodes_per_s": r.episodes_per_s,
+                    "env_steps_per_s": r.env_steps_per_s,
+                    "run_s": r.run_s,
+                    "compile_s": r.compile_s,
+                    "build_s": built,
+                },
+            )
+        scene.close()
+
+
+def host(args: argparse.Namespace) -> None:
+    for task in tasks_of(args.tasks):
+        options = {"task": task, "expert": False, "n_workers": args.workers}
+        scene = build_scene("metaworld", options, backend="host", n_envs=args.workers)
+        t = time.perf_counter()
+        with run_evaluation(
+            scene, "random", n_envs=args.workers, n_episodes=args.seeds, batching="chunks"
+        ) as ev:
+            r = ev.report
+        wall = time.perf_counter() - t
+        emit(
+            args.out,
+            {
+                "kind": "host",
+                "task": task,
+                "workers": args.workers,
+                "episodes": r.n_episodes,
+                "success_rate": r.success_rate,
+                "episodes_per_s": r.episodes_per_s,
+                "env_steps_per_s": r.env_steps_per_s,
+                "wall_s": wall,
+            },
+        )
+        scene.close()
+
+
+def host_direct(args: argparse.Namespace) -> None:
+    """MetaWorld alone: whole episodes inside `--workers` worker processes (no per-step
+    exchange with the evaluator), random actions, 500 steps: the simulator's own speed."""
+    from openral_mjx.evaluation.metaworld_agreement import host_rollouts, host_workers
+
+    rng = np.random.default_rng(0)
+    for task in tasks_of(args.tasks):
+        with host_workers(task, args.workers) as workers:
+            calls = [
+                {"rand_vec": None, "actions": rng.uniform(-1, 1, (500, 4)).astype(np.float32)}
+                for _ in range(args.seeds)
+            ]
+            host_rollouts(workers, calls[: args.workers])  # warm: envs built, first reset
+            t = time.perf_counter()
+            results = host_rollouts(workers, calls)
+            wall = time.perf_counter() - t
+        steps = sum(len(r["actions"]) for r in results)
+        emit(
+            args.out,
+            {
+                "kind": "host-direct",
+                "task": task,
+                "workers": args.workers,
+                "episodes": len(results),
+                "episodes_per_s": len(results) / wall,
+                "env_steps_per_s": steps / wall,
+                "wall_s": wall,
+            },
+        )
+
+
+def mirror_inputs(scene, actions: jax.Array) -> tuple[jax.Array, jax.Array]:
+    """The mocap targets and gripper controls the scene derives from `actions` (T, 4), from
+    its reset mocap position: what the raw ceiling replays."""
+    low, high = scene._mocap_box
+    start = scene._mocap_start[scene._mocap_id]
+
+    def step(pos, a):
+        a = jnp.clip(a, -1.0, 1.0)
+        pos = jnp.clip(pos + a[:3] * mw.ACTION_SCALE, low, high)
+        return pos, (pos, jnp.stack([a[3], -a[3]]))
+
+    return jax.lax.scan(step, start, actions)[1]
+
+
+def raw_ceiling(scene, actions: np.ndarray, max_steps: int) -> tuple[float, float]:
+    """(compile s, control steps/s) of a bare `vmap(scan(mjx.step))` replaying the mocap
+    targets and gripper controls of `actions` (n, T, 4) from the same reset states."""
+    from openral_mjx.physics.mjx_backend import mjx
+    from openral_mjx.runner.episode import seed_keys
+
+    n = actions.shape[0]
+    seeds = jnp.arange(n)
+    data, fields = jax.jit(
+        jax.vmap(lambda s, k: (lambda p: (p.data, p.fields))(scene.reset_with_seed(s, k).physics))
+    )(seeds, seed_keys(seeds)[0])
+    mocap, ctrl = jax.jit(jax.vmap(lambda a: mirror_inputs(scene, a)))(jnp.asarray(actions))
+    mid = scene._mocap_id
+    quat = np.asarray(mw.MOCAP_QUAT) / np.linalg.norm(mw.MOCAP_QUAT)
+    q = jnp.asarray(quat, jnp.float32)
+
+    def one(d, fields, mocap_seq, ctrl_seq):
+        mx = scene.backend.model(fields)  # this env's fixed bodies, as the evaluator has them
+
+        def control_step(d, inputs):
+            pos, c = inputs
+            d = d.replace(
+                ctrl=c,
+                mocap_pos=d.mocap_pos.at[mid].set(pos),
+                mocap_quat=d.mocap_quat.at[mid].set(q),
+            )
+            d = jax.lax.fori_loop(0, mw.FRAME_SKIP, lambda _, x: mjx.step(mx, x), d)
+            return d, None
+
+        return jax.lax.scan(control_step, d, (mocap_seq, ctrl_seq))[0].qpos
+
+    fn = jax.jit(jax.vmap(one))
+    t = time.perf_counter()
+    compiled = fn.lower(data, fields, mocap, ctrl).compile()
+    compile_s = time.perf_counter() - t
+    t = time.perf_counter()
+    jax.block_until_ready(compiled(data, fields, mocap, ctrl))
+    return compile_s, n * max_steps / (time.perf_counter() - t)
+
+
+def raw(args: argparse.Namespace) -> None:
+    for task in tasks_of(args.tasks):
+        for n in args.n:
+            scene = build_scene("metaworld_mjx", {"task": task}, backend=args.backend, n_envs=n)
+            policy = mlp(scene)
+            arrays, timing = run_seeds(
+                scene,
+                policy,
+                policy.init(None, None)[0],
+                seeds=np.arange(n),
+                n_envs=n,
+                max_steps=args.max_steps,
+                record=("actions",),
+            )
+            evaluator = n * args.max_steps / timing.run_s
+            raw_compile, ceiling = raw_ceiling(scene, arrays["actions"], args.max_steps)
+            emit(
+                args.out,
+                {
+                    "kind": "raw",
+                    "task": task,
+                    "backend": args.backend,
+                    "device": str(jax.devices()[0].device_kind),
+                    "n": n,
+                    "max_steps": args.max_steps,
+                    "evaluator_steps_per_s": evaluator,
+                    "raw_steps_per_s": ceiling,
+                    "evaluator_over_raw": evaluator / ceiling,
+                    "evaluator_compile_s": timing.compile_s,
+                    "raw_compile_s": raw_compile,
+                },
+            )
+            scene.close()
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("what", choices=("mirror", "host", "host-direct", "raw"))
+    parser.add_argument("--tasks", nargs="+", default=["mt10"])
+    parser.add_argument("--backend", default="warp")
+    parser.add_argument("--seeds", type=int, default=1000)
+    parser.add_argument("--workers", type=int, default=16)
+    parser.add_argument("--n", type=int, nargs="+", default=[4096, 65536])
+    parser.add_argument("--max-steps", type=int, default=500)
+    parser.add_argument("--out", type=Path)
+    args = parser.parse_args()
+    print(" ".join(["python", *sys.argv]), flush=True)
+    {"mirror": mirror, "host": host, "host-direct": host_direct, "raw": raw}[args.what](args)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

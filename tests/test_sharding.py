@@ -23,6 +23,7 @@ def run_on_cpu_devices(n_devices: int, *argv: object) -> subprocess.CompletedPro
     return subprocess.run(argv, capture_output=True, text=True, env=env, timeout=900, check=False)
 
 
+@pytest.mark.slow  # ~10 min on 2 cores, and a non-strict xfail cannot fail CI anyway
 @pytest.mark.xfail(
     strict=False,
     reason="flaky since 2026-11-25 (3 of 5 runs: 'no slice of an array ... on cpu:N' in a "

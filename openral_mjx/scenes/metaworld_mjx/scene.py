@@ -63,9 +63,8 @@ def for_mjx(spec: mujoco.MjSpec) -> dict[str, int]:
     return {"cylinders_as_prisms": prisms, "margins_zeroed": margins}
 
 
-def hand_reset_state(spec: mujoco.MjSpec, hand_init_pos: tuple[float, ...]) -> mujoco.MjData:
+def hand_reset_state(m: mujoco.MjModel, hand_init_pos: tuple[float, ...]) -> mujoco.MjData:
     """MetaWorld's ``_reset_hand`` from the model's default state, in MuJoCo C (float64)."""
-    m = spec.copy().compile()
     d = mujoco.MjData(m)
     mujoco.mj_resetData(m, d)
     mocap = m.body_mocapid[m.body("mocap").id]
@@ -78,10 +77,10 @@ def hand_reset_state(spec: mujoco.MjSpec, hand_init_pos: tuple[float, ...]) -> m
     return d
 
 
-def model_facts(spec: mujoco.MjSpec, task: mw.MirrorTask) -> tuple[mw.ModelFacts, Any]:
-    """The task's `ModelFacts` and the hand-reset MjData they were read from."""
-    m = spec.copy().compile()
-    d = hand_reset_state(spec, task.hand_init_pos)
+def model_facts(m: mujoco.MjModel, task: mw.MirrorTask) -> tuple[mw.ModelFacts, Any]:
+    """The task's `ModelFacts` for compiled model `m`, and the hand-reset MjData they were
+    read from."""
+    d = hand_reset_state(m, task.hand_init_pos)
     rest: dict[str, np.ndarray] = {}
     for i in range(m.nbody):
         rest[f"body:{m.body(i).name}"] = d.xpos[i].copy()
@@ -94,10 +93,8 @@ def model_facts(spec: mujoco.MjSpec, task: mw.MirrorTask) -> tuple[mw.ModelFacts
     facts = mw.ModelFacts(
         qpos_adr={j.name: int(j.qposadr[0]) for j in joints},
         dof_adr={j.name: int(j.dofadr[0]) for j in joints},
-        body_pos={m.body(i).name: m.body_pos[i].copy() for i in range(m.nbody)},
         site_pos={m.site(i).name: m.site_pos[i].copy() for i in range(m.nsite)},
         rest=rest,
-        qpos0=m.qpos0.copy(),
     )
     return facts, d
 
@@ -122,14 +119,14 @@ class MetaWorldMjx(Scene):
         self.mjx_changes: dict[str, int] = {}
         if resolve_backend_name(backend) == "mjx":
             self.mjx_changes = for_mjx(self.spec)
-        self.facts, rest = model_facts(self.spec, t)
-        m = self.spec.copy().compile()
         bodies = tuple(dict.fromkeys((*mw.COMMON_BODIES, *t.bodies, *t.moved_bodies)))
         sites = tuple(dict.fromkeys((*mw.COMMON_SITES, *t.sites)))
         geoms = tuple(dict.fromkeys(t.geoms))
         self.backend = make_backend(
             backend, self.spec, QuantitySpec(bodies, sites, geoms=geoms), mw.FRAME_SKIP, settings
         )
+        m = self.mj_model  # the backend's compiled copy of the spec
+        self.facts, rest = model_facts(m, t)
         self._names = (
             {n: i for i, n in enumerate(bodies)},
             {n: i for i, n in enumerate(sites)},
@@ -282,8 +279,7 @@ class MetaWorldMjx(Scene):
     def _current(self, view: mw.View) -> jax.Array:
         """MetaWorld's ``_get_curr_obs_combined_no_goal`` (18 floats)."""
         gap = jnp.linalg.norm(view.body_pos("rightclaw") - view.body_pos("leftclaw"))
-        pos, quat = self.logic.objects(view)
-        objects = jnp.concatenate([pos, quat]) if pos.shape[0] == 3 else _interleave(pos, quat)
+        objects = _interleave(*self.logic.objects(view))
         objects = jnp.pad(objects, (0, mw.OBS_OBJ_MAX_LEN - objects.shape[0]))
         return jnp.concatenate([view.hand, jnp.clip(gap / 0.1, 0.0, 1.0)[None], objects])
 

@@ -62,10 +62,8 @@ class ModelFacts:
 
     qpos_adr: Mapping[str, int]  # joint name -> first qpos index
     dof_adr: Mapping[str, int]  # joint name -> first dof index
-    body_pos: Mapping[str, np.ndarray]  # body name -> model default `body_pos` (parent frame)
     site_pos: Mapping[str, np.ndarray]  # site name -> model default `site_pos` (parent frame)
     rest: Mapping[str, np.ndarray]
-    qpos0: np.ndarray
 
 
 class View:

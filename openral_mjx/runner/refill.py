@@ -400,11 +400,12 @@ class RefillRunner(EpisodeRunner):
         padded = seed_chunks(seeds, -(-n // n_dev) * n_dev)[0]
         per_dev = len(padded) // n_dev
         compile_s = 0.0
+        # Placed before compiling: the compile reads the params' shardings (as `chunks` does).
+        params = layout.put_replicated(params) if params is not None else None
         if self._compiled is None or per_dev != self._seeds_per_device:
             self._seeds_per_device = per_dev
             self.per_device = min(self._slots, per_dev)
             compile_s = self._compile(params)
-        params = layout.put_replicated(params) if params is not None else None
         order = device_order(len(padded), n_dev)
         rows_of = np.argsort(order)  # global seed row -> position in the devices' layout
         device_seeds = layout.put_envs(padded[order])

@@ -47,6 +47,12 @@ def test_report_fields(report):
     assert report.sequential is None and report.ci_method == "wilson"
 
 
+def test_report_records_the_instruction(report):
+    """The scene's instruction, for the run and its task's row (schema /5)."""
+    assert report.instruction == "push the red cube to the green goal"
+    assert [r.instruction for r in report.per_task] == [report.instruction]
+
+
 def test_breakdown_is_built_from_the_episodes_factors(report):
     factors = report.episodes[0].metadata["factors"]
     assert sorted(factors) == ["cube_x", "cube_y", "goal_distance", "push_face_angle"]

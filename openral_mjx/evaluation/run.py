@@ -178,6 +178,8 @@ def run_evaluation(
                 owned.callback(pol.close)
         else:
             pol, policy = policy, policy.name
+        if pol.instruct is not None:  # this task's (a suite shares one policy over its tasks)
+            pol.instruct(scene.instruction)
         steps = scene.max_steps if max_steps is None else max_steps
         check_batching(batching, scene.backend.name, refill_every, step_rewards)
         batching = resolve_batching(
@@ -253,7 +255,17 @@ def run_evaluation(
         confidence=0.95,
         ci_method="wilson" if rule is None else "sequential-exact",
         diverged=int(arrays["diverged"].sum()),
-        per_task=[TaskRow(scene.task, n_episodes, successes, successes / n_episodes, low, high)],
+        per_task=[
+            TaskRow(
+                scene.task,
+                n_episodes,
+                successes,
+                successes / n_episodes,
+                low,
+                high,
+                instruction=scene.instruction,
+            )
+        ],
         breakdown=breakdown(factors, arrays["success"], factor_bins),
         env_steps_per_s=timing.env_steps / timing.run_s,
         episodes_per_s=n_episodes / timing.run_s,
@@ -271,5 +283,6 @@ def run_evaluation(
         created_at=dt.datetime.now(dt.UTC).isoformat(timespec="seconds"),
         episodes=episodes,
         sequential=sequential,
+        instruction=scene.instruction,
     )
     return Evaluation(report, scene, pol, params, requested, arrays, timing, resources)

@@ -72,12 +72,21 @@ def merge_reports(reports: list[EvalReport], suite: str, policy: str, command: s
     run_s = sum(r.run_s for r in reports)
     steps = sum(r.env_steps_per_s * r.run_s for r in reports)
     rows = [
-        TaskRow(r.task, r.n_episodes, r.successes, r.success_rate, r.ci_low, r.ci_high)
+        TaskRow(
+            r.task,
+            r.n_episodes,
+            r.successes,
+            r.success_rate,
+            r.ci_low,
+            r.ci_high,
+            instruction=r.instruction,
+        )
         for r in reports
     ]
     return dataclasses.replace(
         first,
         task=suite,
+        instruction=None,  # one per task, in `per_task`
         policy=policy,
         n_episodes=n,
         successes=successes,

@@ -6,8 +6,10 @@ local path only, and answers one batched `act` per control step: the batch's obs
 already renamed to the policy's input features, go through the saved pre-processor,
 `select_action` (which replays the policy's action chunk step by step) and the saved
 post-processor. Images arrive as uint8 (n, H, W, C) and become float (n, C, H, W) in [0, 1],
-lerobot's convention. `build_random_policy` writes a small ACT or Diffusion policy with random
-weights the same way a trained one is saved (for tests and for trying the pipeline).
+lerobot's convention; the task's instruction goes in as ``task``, one string per env (what
+VLA policies read; lerobot's evaluation passes it to every policy). `build_random_policy`
+writes a small ACT or Diffusion policy with random weights the same way a trained one is
+saved (for tests and for trying the pipeline).
 """
 
 from __future__ import annotations
@@ -65,20 +67,27 @@ class LerobotServer:
     def describe(self) -> dict[str, Any]:
         return {"device": self.device, "type": self.policy.config.type}
 
-    def _batch(self, obs: dict[str, np.ndarray]) -> dict[str, Any]:
+    def _batch(self, obs: dict[str, np.ndarray], task: str | None = None) -> dict[str, Any]:
         torch = self.torch
         batch: dict[str, Any] = {}
+        n = 0
         for name, value in obs.items():
             t = torch.from_numpy(np.ascontiguousarray(value))
             if name in self.visual:
                 t = t.permute(0, 3, 1, 2).float().div_(255.0)
             batch[name] = t.float()
+            n = len(t)
+        if task is not None:
+            batch["task"] = [task] * n  # lerobot's language key: one string per batch row
         return batch
 
-    def act(self, obs: dict[str, np.ndarray], reset: bool) -> dict[str, Any]:
+    def act(
+        self, obs: dict[str, np.ndarray], reset: bool, task: str | None = None
+    ) -> dict[str, Any]:
         """Actions (n, action_dim) for a batch of observations keyed by input feature; `reset`
-        starts new episodes (clears the action queue, reseeds torch). `ms` is the inference
-        time here (pre-processing, model, post-processing)."""
+        starts new episodes (clears the action queue, reseeds torch); `task` is the
+        instruction every env's batch row carries. `ms` is the inference time here
+        (pre-processing, model, post-processing)."""
         start = time.perf_counter()
         if reset:
             self.policy.reset()
@@ -86,7 +95,7 @@ class LerobotServer:
             self.post.reset()
             self.torch.manual_seed(self.seed)
         with self.torch.inference_mode():
-            action = self.post(self.policy.select_action(self.pre(self._batch(obs))))
+            action = self.post(self.policy.select_action(self.pre(self._batch(obs, task))))
         out = action.detach().to("cpu", self.torch.float32).numpy()
         return {"action": out, "ms": 1000 * (time.perf_counter() - start)}
 

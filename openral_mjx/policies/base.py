@@ -4,7 +4,10 @@
 all envs; the runner broadcasts `policy_state` to every env). `act(params, policy_state, obs,
 key) -> (action, policy_state)` is single-env; the runner vmaps it. A policy that runs outside
 JAX (a torch model behind a host callback) measures its own latency per step and exposes it
-through `latency_ms(policy_state) -> ms`, which the runner accumulates per episode.
+through `latency_ms(policy_state) -> ms`, which the runner accumulates per episode. A
+language-conditioned policy takes the task's natural-language instruction (the scene's
+`instruction`) through `instruct(text)`, called before each evaluation (a suite evaluates one
+policy on several tasks).
 """
 
 from __future__ import annotations
@@ -31,3 +34,4 @@ class Policy:
     cache_key: str | None = None
     latency_ms: Callable[[Any], jax.Array] | None = None
     close: Callable[[], None] | None = None  # releases host resources (a policy server)
+    instruct: Callable[[str], None] | None = None  # sets the task's instruction (VLA policies)

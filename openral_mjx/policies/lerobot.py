@@ -17,6 +17,11 @@ gym-env names, e.g. its MetaWorld env's); ``observation.environment_state`` take
 ``environment_state`` or ``object``; in a scene whose observation is one flat vector, both
 state features take that vector. Images are uint8 (H, W, C) in the scene and (C, H, W) in the
 policy's features; shapes must agree.
+
+Language. Every batch carries the scene's `instruction` under lerobot's ``task`` key (one
+string per env), as lerobot's own evaluation hands every policy its env's task description:
+VLA policies (SmolVLA, pi0) read it, the others ignore it. `Policy.instruct` changes it
+between evaluations (a suite's tasks).
 """
 
 from __future__ import annotations
@@ -113,9 +118,16 @@ def key_map(
 class LerobotClient:
     """The evaluator's side of one policy server; `__call__` is the per-step host callback."""
 
-    def __init__(self, path: Path, keys: dict[str, str], action_size: int) -> None:
+    def __init__(
+        self, path: Path, keys: dict[str, str], action_size: int, instruction: str = ""
+    ) -> None:
         self.path, self.keys, self.action_size = path, keys, action_size
+        self.instruction = instruction
         self.worker: Worker | None = None
+
+    def instruct(self, text: str) -> None:
+        """The instruction sent with every following step (see the module docstring)."""
+        self.instruction = text
 
     def start(self) -> None:
         if self.worker is not None and self.worker.alive:
@@ -153,7 +165,11 @@ class LerobotClient:
             {
                 "op": "call",
                 "method": "act",
-                "kwargs": {"obs": inputs, "reset": bool((t == 0).all())},
+                "kwargs": {
+                    "obs": inputs,
+                    "reset": bool((t == 0).all()),
+                    "task": self.instruction,
+                },
             },
             STEP_TIMEOUT_S,
         )
@@ -188,7 +204,7 @@ def lerobot_policy(scene: Any, arg: str | None) -> Policy:
             raise ConfigError(f"{path / KEYS_FILE}: expected a mapping feature: scene_key")
     observation = _scene_arrays(scene.observation_spec)
     keys = key_map(features, observation, explicit)
-    client = LerobotClient(path, keys, action_size)
+    client = LerobotClient(path, keys, action_size, scene.instruction)
     client.start()
     flat = not isinstance(scene.observation_spec, Mapping)
     sd = jax.ShapeDtypeStruct
@@ -210,4 +226,11 @@ def lerobot_policy(scene: Any, arg: str | None) -> Policy:
         )
         return action, {"t": pstate["t"] + 1, "ms": ms}
 
-    return Policy(f"lerobot:{arg}", init, act, latency_ms=lambda s: s["ms"], close=client.close)
+    return Policy(
+        f"lerobot:{arg}",
+        init,
+        act,
+        latency_ms=lambda s: s["ms"],
+        close=client.close,
+        instruct=client.instruct,
+    )

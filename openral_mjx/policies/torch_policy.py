@@ -6,8 +6,12 @@ action_size)` tensor of actions: one `(batch, n)` tensor where the scene observe
 vector (`tabletop_push`, `so101_box`: a plain `nn.Sequential` MLP fits), else a dict of tensors
 by observation name (batch first; host scenes' images are uint8 `(batch, H, W, C)`). The
 factory gets, by keyword, whichever of `observation_spec` (name -> (shape, dtype) of one env's
-observation; a flat one is named `obs`), `action_size` and `device` (the torch device it will
-run on) its signature names.
+observation; a flat one is named `obs`), `action_size`, `device` (the torch device it will
+run on) and `instruction` or `task` (the scene's natural-language instruction) its signature
+names.
+A module whose `forward` (or call) names a `task` or `instruction` parameter gets the
+instruction there at every step, one string per env (lerobot's `batch["task"]` convention;
+`Policy.instruct` changes it between evaluations, e.g. a suite's tasks).
 A module with a `reset(envs)` method is told which envs (a 1-D int64 tensor of batch rows)
 start an episode before each step they do, for policies that keep per-env state (action
 chunks).
@@ -43,7 +47,8 @@ from openral_mjx.core.errors import ConfigError
 from openral_mjx.host.pool import host_callback
 from openral_mjx.policies.base import Policy
 
-FACTORY_KWARGS = ("observation_spec", "action_size", "device")
+FACTORY_KWARGS = ("observation_spec", "action_size", "device", "instruction", "task")
+LANGUAGE_KWARGS = ("task", "instruction")  # the module's per-step language parameter
 
 
 def _import_torch() -> Any:
@@ -112,6 +117,17 @@ def to_torch(torch: Any, x: Any) -> Any:
         return torch.as_tensor(np.array(x))
 
 
+def language_kwarg(module: Any) -> str | None:
+    """The parameter of `module`'s forward (or call) that takes the instruction, if it names
+    one of `LANGUAGE_KWARGS`."""
+    target = getattr(module, "forward", module)
+    try:
+        params = inspect.signature(target).parameters
+    except (TypeError, ValueError):
+        return None
+    return next((k for k in LANGUAGE_KWARGS if k in params), None)
+
+
 def _observation_spec(scene: Any) -> dict[str, jax.ShapeDtypeStruct]:
     spec = scene.observation_spec
     return dict(spec) if isinstance(spec, Mapping) else {"obs": spec}
@@ -128,11 +144,18 @@ class TorchStep:
         shapes: Mapping[str, tuple[int, ...]],
         action_size: int,
         flat: bool,
+        instruction: str = "",
     ) -> None:
         self.torch, self.module, self.device = torch, module, device
         self.shapes, self.action_size, self.flat = dict(shapes), action_size, flat
         reset = getattr(module, "reset", None)
         self.reset = reset if callable(reset) else None
+        self.instruction = instruction
+        self.language = language_kwarg(module)
+
+    def instruct(self, text: str) -> None:
+        """The instruction passed to the module from the next step on."""
+        self.instruction = text
 
     def actions(self, obs: Mapping[str, Any], n: int, starting: np.ndarray | None) -> Any:
         """The module's actions for a batch of `n` envs, a float32 (n, action_size) tensor on
@@ -145,7 +168,8 @@ class TorchStep:
             }
             if self.reset is not None and starting is not None and starting.size:
                 self.reset(torch.as_tensor(starting, dtype=torch.int64))
-            action = self.module(inputs["obs"] if self.flat else inputs)
+            language = {self.language: [self.instruction] * n} if self.language else {}
+            action = self.module(inputs["obs"] if self.flat else inputs, **language)
             if not isinstance(action, torch.Tensor):
                 action = torch.as_tensor(action)
             return action.detach().to("cpu", torch.float32).reshape(n, -1).contiguous()
@@ -174,6 +198,8 @@ def torch_policy(scene: Any, arg: str | None) -> Policy:
         "observation_spec": {k: (tuple(v.shape), np.dtype(v.dtype).name) for k, v in spec.items()},
         "action_size": int(scene.action_size),
         "device": device,
+        "instruction": scene.instruction,
+        "task": scene.instruction,
     }
     try:
         accepted = inspect.signature(factory).parameters
@@ -188,7 +214,7 @@ def torch_policy(scene: Any, arg: str | None) -> Policy:
         module.eval()
     flat = not isinstance(scene.observation_spec, Mapping)
     shapes = {k: tuple(v.shape) for k, v in spec.items()}
-    step = TorchStep(torch, module, device, shapes, int(scene.action_size), flat)
+    step = TorchStep(torch, module, device, shapes, int(scene.action_size), flat, scene.instruction)
     zeros = {k: np.zeros((2, *v.shape), v.dtype) for k, v in spec.items()}
     try:
         dry = step.actions(zeros, 2, None)
@@ -218,4 +244,4 @@ def torch_policy(scene: Any, arg: str | None) -> Policy:
         )
         return action, {"t": pstate["t"] + 1, "ms": ms}
 
-    return Policy(f"torch:{arg}", init, act, latency_ms=lambda s: s["ms"])
+    return Policy(f"torch:{arg}", init, act, latency_ms=lambda s: s["ms"], instruct=step.instruct)

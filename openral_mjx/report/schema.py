@@ -13,11 +13,17 @@ from typing import Any
 
 from openral_mjx.core.errors import ConfigError
 
-SCHEMA_VERSION = "openral_mjx.eval_report/4"
+SCHEMA_VERSION = "openral_mjx.eval_report/5"
 # /2 has the same fields as /3; /3 only widened what the latency fields and metadata may hold
 # (a torch policy's own latencies, a host worker's error), so a /2 report reads as it was.
 # /4 added `live_env_steps_per_s` (continuous batching), None when read from /2 or /3.
-READABLE_VERSIONS = ("openral_mjx.eval_report/2", "openral_mjx.eval_report/3", SCHEMA_VERSION)
+# /5 added `instruction` (the report's and each per-task row's), None when read from /2../4.
+READABLE_VERSIONS = (
+    "openral_mjx.eval_report/2",
+    "openral_mjx.eval_report/3",
+    "openral_mjx.eval_report/4",
+    SCHEMA_VERSION,
+)
 
 
 @dataclasses.dataclass
@@ -66,7 +72,8 @@ class EpisodeResult:
 
 @dataclasses.dataclass
 class TaskRow:
-    """Per-task aggregate (one row per task; a single-task scene has one)."""
+    """Per-task aggregate (one row per task; a single-task scene has one); `instruction` is
+    the task in natural language (the scene's `instruction`), None in reports before /5."""
 
     task: str
     n_episodes: int
@@ -74,6 +81,7 @@ class TaskRow:
     success_rate: float
     ci_low: float
     ci_high: float
+    instruction: str | None = None
 
 
 @dataclasses.dataclass
@@ -119,6 +127,8 @@ class EvalReport:
     factor the scene declares (equal-count bins). Throughput over `run_s`: `env_steps_per_s`
     counts every env-step the batch simulated (finished envs waiting included),
     `live_env_steps_per_s` only the steps of running episodes, `episodes_per_s` episodes.
+    `instruction` is the task in natural language, as language-conditioned policies were told
+    it (None for a suite, whose `per_task` rows carry each task's, and in reports before /5).
     """
 
     scene: str
@@ -152,6 +162,7 @@ class EvalReport:
     episodes: list[EpisodeResult]
     sequential: SequentialInfo | None = None
     live_env_steps_per_s: float | None = None
+    instruction: str | None = None
     schema_version: str = SCHEMA_VERSION
 
     def summary(self) -> str:

@@ -31,6 +31,11 @@ from openral_mjx.scenes.host_scene import HostOptions, HostScene, HostSceneSpec
 ENV = "gym-envs"
 FACTORY = "openral_mjx.host.aloha_env:make"
 TASKS = ("AlohaInsertion-v0", "AlohaTransferCube-v0")
+# Instructions (ours: lerobot's ALOHA env hands policies gym-aloha's task id, e.g. "insertion").
+INSTRUCTIONS = {
+    "AlohaInsertion-v0": "insert the peg into the socket",
+    "AlohaTransferCube-v0": "pick up the cube with the right arm and hand it to the left arm",
+}
 FACTORS = {
     "AlohaInsertion-v0": ("peg_x", "peg_y", "socket_x", "socket_y"),
     "AlohaTransferCube-v0": ("cube_x", "cube_y"),
@@ -96,5 +101,6 @@ def aloha(options: AlohaOptions, **_: object) -> HostScene:
         action_high=ARM_HIGH * 2,
         control_dt=CONTROL_DT,
         max_steps=o.max_steps,
+        instruction=INSTRUCTIONS[o.task],
     )
     return HostScene(spec, o, ENV, ensure_env(ENV))

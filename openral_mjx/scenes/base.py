@@ -48,6 +48,14 @@ class Scene(abc.ABC):
     spec: mujoco.MjSpec
     options: Any
     robot_name: str
+
+    @property
+    def instruction(self) -> str:
+        """The task in natural language: what language-conditioned (VLA) policies are told and
+        reports record. Registered scenes write their own (benchmarks: the benchmark's text);
+        this fallback spells out the task name, so a scene without one still reads sensibly."""
+        return self.task.replace("_", " ").replace("-", " ")
+
     # Array shapes of the sensor slices of the observation (see `obs_shapes`); none by default.
     sensor_shapes: Mapping[str, tuple[int, ...]] = types.MappingProxyType({})
 

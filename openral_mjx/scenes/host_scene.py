@@ -47,6 +47,8 @@ class HostSceneSpec:
         max_steps: default episode length.
         n_init_states: fixed initial states to pick from by seed (0: the env's own sampling).
         reset_options: extra options passed to every env reset.
+        instruction: the task in natural language (see `Scene.instruction`; empty: the
+            fallback from the task name).
     """
 
     name: str
@@ -59,6 +61,7 @@ class HostSceneSpec:
     max_steps: int
     n_init_states: int = 0
     reset_options: dict[str, Any] = dataclasses.field(default_factory=dict)
+    instruction: str = ""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -191,6 +194,11 @@ class HostScene(Scene):
             f"({', '.join(self.host_spec.batch.observation)}), not one flat vector: policies "
             "and trainers that need a flat vector (mlp, finetune) do not apply"
         )
+
+    @property
+    def instruction(self) -> str:
+        """The spec's instruction, known without starting a worker."""
+        return self.host_spec.instruction or super().instruction
 
     def action_bounds(self) -> tuple[jax.Array, jax.Array]:
         s = self.host_spec

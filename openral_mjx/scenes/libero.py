@@ -8,8 +8,8 @@ seeds robosuite's RNG from the episode's reset key. Observation: ``image`` and
 axis-angle, gripper fingers: 8 floats), as lerobot's LIBERO policies expect. Action: 7-D OSC
 pose delta and gripper in [-1, 1], 20 Hz. Success: LIBERO's goal predicates. Cameras render
 offscreen through EGL (Mesa's software rasteriser on a CPU-only machine, a GPU's where there
-is one). The simulator runs in the ``lerobot-libero`` worker environment, created on first use
-(see `openral_mjx.host.envs`).
+is one). Instruction: the task's own language (`libero_instructions`). The simulator runs in
+the ``lerobot-libero`` worker environment, created on first use (see `openral_mjx.host.envs`).
 """
 
 from __future__ import annotations
@@ -19,6 +19,7 @@ import dataclasses
 from openral_mjx.core.errors import ConfigError, unknown
 from openral_mjx.core.options import check
 from openral_mjx.scenes.host_scene import HostOptions, HostScene
+from openral_mjx.scenes.libero_instructions import INSTRUCTIONS
 from openral_mjx.scenes.robosuite_scene import panda_osc_scene
 
 # Tasks per suite and episode limits (lerobot's: the longest training demonstration + margin).
@@ -49,6 +50,12 @@ def suite_tasks(suite: str) -> list[str]:
     if suite not in SUITES:
         raise unknown("LIBERO suite", suite, SUITES)
     return [f"{suite}/{i}" for i in range(SUITES[suite][0])]
+
+
+def instruction(task: str) -> str:
+    """LIBERO's language instruction of ``suite/index`` (see `libero_instructions`)."""
+    suite, index = parse_task(task)
+    return INSTRUCTIONS[suite][index]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -89,4 +96,5 @@ def libero(options: LiberoOptions, **_: object) -> HostScene:
         o.max_steps or SUITES[suite][1],
         o.gl,
         n_init_states=INIT_STATES,
+        instruction=instruction(o.task),
     )

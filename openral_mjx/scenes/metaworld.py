@@ -13,7 +13,8 @@ the task's scripted policy's action at this observation (computed in the worker;
 ``--policy metaworld-expert``). Action: 4-D hand displacement and gripper in [-1, 1] at 80 Hz
 (MetaWorld's 5 substeps of 2.5 ms). Success: ``info["success"]``, which ends the episode;
 MetaWorld truncates at 500 steps. Episode factors: the object's initial position and the goal
-position (x, y, z). Runs in the ``metaworld`` worker environment, created on first use (see
+position (x, y, z). Instruction: lerobot's description of the task (`INSTRUCTIONS`), also the
+mirror's. Runs in the ``metaworld`` worker environment, created on first use (see
 `openral_mjx.host.envs`).
 """
 
@@ -151,12 +152,74 @@ ML45_TRAIN = (
 )
 SUITES = {"mt10": MT10, "mt50": TASKS, "ml45-train": ML45_TRAIN, "ml45-test": ML45_TEST}
 
+# Each task's natural-language instruction: lerobot 0.4.4's MetaWorld task descriptions
+# (`TASK_DESCRIPTIONS` in its data file `lerobot/envs/metaworld_config.json`), the text its
+# MetaWorld env hands VLA policies as `task`; tests check them against the installed file
+# where the `lerobot-libero` worker environment exists.
+INSTRUCTIONS = {
+    "assembly-v3": "Pick up a nut and place it onto a peg",
+    "basketball-v3": "Dunk the basketball into the basket",
+    "bin-picking-v3": "Grasp the puck from one bin and place it into another bin",
+    "box-close-v3": "Grasp the cover and close the box with it",
+    "button-press-topdown-v3": "Press a button from the top",
+    "button-press-topdown-wall-v3": "Bypass a wall and press a button from the top",
+    "button-press-v3": "Press a button",
+    "button-press-wall-v3": "Bypass a wall and press a button",
+    "coffee-button-v3": "Push a button on the coffee machine",
+    "coffee-pull-v3": "Pull a mug from a coffee machine",
+    "coffee-push-v3": "Push a mug under a coffee machine",
+    "dial-turn-v3": "Rotate a dial 180 degrees",
+    "disassemble-v3": "Pick a nut out of a peg",
+    "door-close-v3": "Close a door with a revolving joint",
+    "door-lock-v3": "Lock the door by rotating the lock clockwise",
+    "door-open-v3": "Open a door with a revolving joint",
+    "door-unlock-v3": "Unlock the door by rotating the lock counter-clockwise",
+    "hand-insert-v3": "Insert the gripper into a hole",
+    "drawer-close-v3": "Push and close a drawer",
+    "drawer-open-v3": "Open a drawer",
+    "faucet-open-v3": "Rotate the faucet counter-clockwise",
+    "faucet-close-v3": "Rotate the faucet clockwise",
+    "hammer-v3": "Hammer a screw on the wall",
+    "handle-press-side-v3": "Press a handle down sideways",
+    "handle-press-v3": "Press a handle down",
+    "handle-pull-side-v3": "Pull a handle up sideways",
+    "handle-pull-v3": "Pull a handle up",
+    "lever-pull-v3": "Pull a lever down 90 degrees",
+    "pick-place-wall-v3": "Pick a puck, bypass a wall and place the puck",
+    "pick-out-of-hole-v3": "Pick up a puck from a hole",
+    "pick-place-v3": "Pick and place a puck to a goal",
+    "plate-slide-v3": "Slide a plate into a cabinet",
+    "plate-slide-side-v3": "Slide a plate into a cabinet sideways",
+    "plate-slide-back-v3": "Get a plate from the cabinet",
+    "plate-slide-back-side-v3": "Get a plate from the cabinet sideways",
+    "peg-insert-side-v3": "Insert a peg sideways",
+    "peg-unplug-side-v3": "Unplug a peg sideways",
+    "soccer-v3": "Kick a soccer into the goal",
+    "stick-push-v3": "Grasp a stick and push a box using the stick",
+    "stick-pull-v3": "Grasp a stick and pull a box with the stick",
+    "push-v3": "Push the puck to a goal",
+    "push-wall-v3": "Bypass a wall and push a puck to a goal",
+    "push-back-v3": "Push the puck to a goal",
+    "reach-v3": "Reach a goal position",
+    "reach-wall-v3": "Bypass a wall and reach a goal",
+    "shelf-place-v3": "Pick and place a puck onto a shelf",
+    "sweep-into-v3": "Sweep a puck into a hole",
+    "sweep-v3": "Sweep a puck off the table",
+    "window-open-v3": "Push and open a window",
+    "window-close-v3": "Push and close a window",
+}
+
 
 def suite_tasks(suite: str) -> list[str]:
     """Every task of MetaWorld benchmark `suite`, in MetaWorld's order."""
     if suite not in SUITES:
         raise unknown("MetaWorld suite", suite, SUITES)
     return list(SUITES[suite])
+
+
+def instruction(task: str) -> str:
+    """MetaWorld task `task`'s instruction (`INSTRUCTIONS`), shared by host and mirror scenes."""
+    return INSTRUCTIONS[task]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -211,5 +274,6 @@ def metaworld(options: MetaWorldOptions, **_: object) -> HostScene:
         action_high=(1.0,) * ACTION_SIZE,
         control_dt=CONTROL_DT,
         max_steps=o.max_steps,
+        instruction=instruction(o.task),
     )
     return HostScene(spec, o, ENV, ensure_env(ENV))

@@ -53,5 +53,6 @@ def point_reach(options: PointReachOptions, **_: object) -> HostScene:
         control_dt=0.05,
         max_steps=o.max_steps,
         n_init_states=len(TARGETS),
+        instruction="move the point to the target",
     )
     return HostScene(spec, o, "core", ensure_env("core"))

@@ -28,6 +28,8 @@ ENV = "gym-envs"
 FACTORY = "openral_mjx.host.pusht_env:make"
 FACTORS = ("block_x", "block_y", "block_angle", "agent_x", "agent_y")
 TASKS = ("PushT-v0",)
+# Instructions (ours: lerobot's PushT env hands policies an empty `task`).
+INSTRUCTIONS = {"PushT-v0": "push the T-shaped block onto the T-shaped target"}
 OBS_TYPES = ("pixels_agent_pos", "environment_state_agent_pos")
 MAX_STEPS = 300  # lerobot's PushT episode length (and gym-pusht's registered limit)
 CONTROL_DT = 0.1  # 10 Hz: 10 pymunk substeps of 10 ms
@@ -76,5 +78,6 @@ def pusht(options: PushTOptions, **_: object) -> HostScene:
         action_high=(ACTION_HIGH, ACTION_HIGH),
         control_dt=CONTROL_DT,
         max_steps=o.max_steps,
+        instruction=INSTRUCTIONS[o.task],
     )
     return HostScene(spec, o, ENV, ensure_env(ENV))

@@ -20,6 +20,8 @@ from openral_mjx.scenes.host_scene import HostOptions, HostScene, HostSceneSpec
 
 ENV = "lerobot-libero"
 OBJECT_SIZE = {"Lift": 10}  # the task's object observation
+# Instructions (ours: robosuite and lerobot define none for these tasks).
+INSTRUCTIONS = {"Lift": "lift the red cube off the table"}
 CONTROL_DT = 0.05  # robosuite's and LIBERO's 20 Hz control
 
 
@@ -51,6 +53,7 @@ def panda_osc_scene(
     max_steps: int,
     gl: str,
     n_init_states: int = 0,
+    instruction: str = "",
 ) -> HostScene:
     """A robosuite-based scene (robosuite itself, or LIBERO on it): a Panda under OSC_POSE
     (7-D action in [-1, 1], 20 Hz) in the `lerobot-libero` worker environment."""
@@ -67,6 +70,7 @@ def panda_osc_scene(
         control_dt=CONTROL_DT,
         max_steps=max_steps,
         n_init_states=n_init_states,
+        instruction=instruction,
     )
     return HostScene(spec, options, ENV, ensure_env(ENV))
 
@@ -78,4 +82,14 @@ def robosuite(options: RobosuiteOptions, **_: object) -> HostScene:
         observation["image"] = ((o.image_size, o.image_size, 3), "uint8")
     kwargs = {"task": o.task, "image_size": o.image_size, "horizon": o.max_steps + 1}
     factory = "openral_mjx.host.robosuite_env:RobosuiteEnv"
-    return panda_osc_scene("robosuite", o.task, o, factory, kwargs, observation, o.max_steps, o.gl)
+    return panda_osc_scene(
+        "robosuite",
+        o.task,
+        o,
+        factory,
+        kwargs,
+        observation,
+        o.max_steps,
+        o.gl,
+        instruction=INSTRUCTIONS[o.task],
+    )

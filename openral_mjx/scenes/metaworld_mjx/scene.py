@@ -38,6 +38,7 @@ from openral_mjx.physics import (
     resolve_backend_name,
 )
 from openral_mjx.scenes.base import Scene, State, obs_slices
+from openral_mjx.scenes.metaworld import instruction as host_instruction
 from openral_mjx.scenes.composition import cylinders_as_prisms
 from openral_mjx.scenes.metaworld_mjx import task as mw
 from openral_mjx.scenes.metaworld_mjx.assets import load_spec
@@ -163,6 +164,11 @@ class MetaWorldMjx(Scene):
     @property
     def obs_layout(self) -> dict[str, tuple[int, int]]:
         return dict(self._layout)
+
+    @property
+    def instruction(self) -> str:
+        """The host scene's text for the task (lerobot's MetaWorld description)."""
+        return host_instruction(self.task)
 
     @property
     def action_size(self) -> int:

@@ -32,6 +32,7 @@ class So101Box(Scene):
 
     name = "so101_box"
     task = "insert_tube_in_block"
+    instruction = "insert the white tube into the hole of the blue block"
     robot_name = "so101"
 
     def __init__(

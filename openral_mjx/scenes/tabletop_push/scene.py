@@ -37,6 +37,7 @@ class TabletopPush(Scene):
 
     name = "tabletop_push"
     task = "push_cube_to_goal"
+    instruction = "push the red cube to the green goal"
 
     def __init__(
         self,

@@ -11,6 +11,8 @@ stderr; the summary to stdout.
 from __future__ import annotations
 
 import dataclasses
+import json
+import shlex
 import sys
 from pathlib import Path
 from typing import Any
@@ -34,6 +36,8 @@ from openral_mjx.training.run_dir import RunDir
 class SceneArgs:
     scene: str = "tabletop_push"
     """Scene ID."""
+    task: str | None = None
+    """Task of a multi-task scene (metaworld_mjx: reach-v3, ...); the scene option `task`."""
     backend: str = "auto"
     """Physics backend: auto (warp with warp-lang on a CUDA GPU, mjx on another accelerator,
     else c), mjx, warp or c. Training runs on the backend's first device."""
@@ -137,6 +141,10 @@ class PpoArgs(SceneArgs):
     """From scratch only: hidden layer sizes."""
     activation: str = "silu"
     """From scratch only: silu, tanh or relu."""
+    action_scale: float = 0.05
+    """From scratch only: how far one unit of the network's output moves each action, as a
+    fraction of its range (0.05 suits position servos; metaworld_mjx's hand-velocity actions
+    learn faster with 0.5)."""
 
 
 DEFAULT_TIMESTEPS = 20_000_000
@@ -152,6 +160,8 @@ def _scene_options(args: SceneArgs) -> dict[str, Any]:
     if args.config is not None:
         options.update(load_yaml(args.config))
     options.update(parse_overrides(args.opt))
+    if args.task is not None:
+        options["task"] = args.task
     return options
 
 
@@ -210,6 +220,8 @@ def _bc_argv(args: BcArgs, backend: str) -> list[str]:
     argv += ["--hidden", *map(str, args.hidden), "--activation", args.activation]
     if args.max_steps is not None:
         argv += ["--max-steps", str(args.max_steps)]
+    if args.task is not None:
+        argv += ["--task", args.task]
     if args.config is not None:
         argv += ["--config", str(args.config)]
     if args.opt:
@@ -313,7 +325,9 @@ def run_ppo(args: PpoArgs) -> int:
         enable_compilation_cache()
     start = None
     if not args.resume:
-        start = runs.NewPolicy(args.init, args.hidden, args.activation, args.seed)
+        start = runs.NewPolicy(
+            args.init, args.hidden, args.activation, args.seed, args.action_scale
+        )
     run = runs.prepare_ppo(
         run_dir,
         settings,
@@ -347,14 +361,40 @@ def run_ppo(args: PpoArgs) -> int:
         f"{_fmt_steps(summary['env_steps'])} steps, {summary['wall_s']:.0f} s training{speed}, "
         f"{summary['elapsed_s']:.0f} s in all"
     )
-    print(f"policies: {run_dir.best} (best), {run_dir.final} (last)")
+    vs = summary["final_vs_init"]
+    if vs is not None and init is not None:
+        print(
+            f"final vs start on the same {vs['n_episodes']} validation seeds (paired): "
+            f"{100 * vs['difference']:+.1f} points [{100 * vs['ci_low']:+.1f}, "
+            f"{100 * vs['ci_high']:+.1f}], McNemar p = {vs['p_value']:.3g}; mean return "
+            f"{init['mean_return']:.1f} -> {summary['final_mean_return']:.1f}"
+        )
+    print(f"policies: {run_dir.best} (best), {run_dir.final} (last), {run_dir.init} (start)")
     curve = f"; curve: {run_dir.curve_path}" if can_plot() else ""
-    print(f"metrics: {run_dir.metrics_path}{curve}")
+    print(f"metrics: {run_dir.metrics_path}{curve}; summary: {run_dir.summary_path}")
     print(
-        f"test: python -m openral_mjx.eval --scene {scene.name} --policy mlp:{run_dir.best} "
-        f"--seed {TEST_SEEDS} --n-episodes 4096"
+        f"test: python -m openral_mjx.eval --scene {scene.name}{_eval_flags(scene, settings)} "
+        f"--policy mlp:{run_dir.best} --seed {TEST_SEEDS} --n-episodes 4096 (and the same "
+        f"with mlp:{run_dir.init}; pair the two reports with python -m openral_mjx.compare)"
     )
     return 0
+
+
+def _yaml(value: Any) -> str:
+    return value if isinstance(value, str) else json.dumps(value)
+
+
+def _eval_flags(scene: Any, settings: dict[str, Any]) -> str:
+    """The eval CLI's flags for the scene options and episode length the run trained on."""
+    flags = []
+    options = dict(settings["scene_options"])
+    if "task" in options:
+        flags += ["--task", str(options.pop("task"))]
+    if options:
+        flags += ["--opt", *(f"{k}={_yaml(v)}" for k, v in options.items())]
+    if settings["ppo"]["max_steps"] != scene.max_steps:
+        flags += ["--max-steps", str(settings["ppo"]["max_steps"])]
+    return "".join(f" {shlex.quote(f)}" for f in flags)
 
 
 def run_curve(args: CurveArgs) -> int:

@@ -61,11 +61,16 @@ class HeldOutEvaluator:
         )
 
     def __call__(self, params: Any) -> EvalResult:
+        return self.run(params)[0]
+
+    def run(self, params: Any) -> tuple[EvalResult, np.ndarray]:
+        """The result and the per-seed successes (bool, in seed order), for paired tests."""
         arrays, timing = self.runner.run(params, self.seeds)
         n = len(self.seeds)
-        k = int(arrays["success"].sum())
+        success = np.asarray(arrays["success"], bool)
+        k = int(success.sum())
         low, high = wilson_interval(k, n)
-        return EvalResult(
+        result = EvalResult(
             n_episodes=n,
             successes=k,
             success_rate=k / n,
@@ -76,3 +81,4 @@ class HeldOutEvaluator:
             run_s=timing.run_s,
             compile_s=timing.compile_s,
         )
+        return result, success

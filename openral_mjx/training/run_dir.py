@@ -3,7 +3,9 @@
     OUT/run.json            settings of the run (what `--resume` continues)
     OUT/metrics.jsonl       one JSON object per update ("train") and per evaluation ("eval")
     OUT/state/update_N/     full training state after update N (orbax `arrays/` + progress.json)
-    OUT/best/, OUT/final/   `mlp` policy checkpoints: best by validation success, and last
+    OUT/init/, OUT/best/, OUT/final/   `mlp` policy checkpoints: the starting policy, the best
+                            by validation success, and the last
+    OUT/summary.json        the finished run's summary (final against initial, paired)
 
 Each checkpoint is built in a temporary directory and renamed into place when complete, so an
 interrupted save leaves the previous checkpoint as the latest.
@@ -32,9 +34,11 @@ class RunDir:
         self.settings_path = self.path / "run.json"
         self.metrics_path = self.path / "metrics.jsonl"
         self.state_dir = self.path / "state"
+        self.init = self.path / "init"
         self.best = self.path / "best"
         self.final = self.path / "final"
         self.curve_path = self.path / "learning_curve.png"
+        self.summary_path = self.path / "summary.json"
 
     # ---- settings --------------------------------------------------------------------------
 

@@ -2,7 +2,8 @@
 
 The command parses flags and prints; these functions build the scene, the configs and the
 policy to start from, and run the training into its output directory. `log` receives the
-progress lines (the command sends them to stderr).
+progress lines (the command sends them to stderr). PPO refuses a scene whose `check_reward()`
+raises (a mirror task whose reward is not ported returns 0: nothing to learn from).
 """
 
 from __future__ import annotations
@@ -117,14 +118,19 @@ def run_bc(
 # ---- ppo -----------------------------------------------------------------------------------
 
 
-def scratch_config(scene: Scene, hidden: tuple[int, ...], activation: str) -> MlpConfig:
-    """A fresh policy: actions relative to the joints, `u` = 5% of each control range."""
+def scratch_config(
+    scene: Scene, hidden: tuple[int, ...], activation: str, action_scale: float = 0.05
+) -> MlpConfig:
+    """A fresh policy: actions relative to the joints (where the scene reads them), `u` =
+    `action_scale` of each control range (5%: a small step for a position servo)."""
+    if not action_scale > 0:
+        raise ConfigError(f"action_scale must be > 0, got {action_scale}")
     low, high = (np.asarray(x) for x in scene.action_bounds())
     return MlpConfig(
         obs_size=scene.observation_size,
         action_size=scene.action_size,
         action_offset=(0.0,) * scene.action_size,
-        action_scale=tuple(float(x) for x in 0.05 * (high - low)),
+        action_scale=tuple(float(x) for x in action_scale * (high - low)),
         action_base_index=scene.action_obs_index(),
         hidden=hidden,
         activation=activation,
@@ -144,6 +150,7 @@ class NewPolicy:
     hidden: tuple[int, ...] = (256, 256, 256)  # fresh network only
     activation: str = "silu"  # fresh network only
     seed: int = 0
+    action_scale: float = 0.05  # fresh network only: see `scratch_config`
 
 
 @dataclasses.dataclass
@@ -187,6 +194,13 @@ def prepare_ppo(
     scene = build_scene(
         settings["scene"], settings["scene_options"], settings["backend"], threads, batch
     )
+    check_reward = getattr(scene, "check_reward", None)
+    if check_reward is not None:  # a scene whose reward is undefined here refuses (ConfigError)
+        try:
+            check_reward()
+        except ConfigError:
+            scene.close()
+            raise
     init_policy = None
     if resume:
         fields = {**settings["ppo"], "critic_hidden": tuple(settings["ppo"]["critic_hidden"])}
@@ -202,7 +216,7 @@ def prepare_ppo(
             mlp_config, init_policy = load_mlp(start.init)
             check_compatible(mlp_config, scene, f"--init {str(start.init)!r}")
         else:
-            mlp_config = scratch_config(scene, start.hidden, start.activation)
+            mlp_config = scratch_config(scene, start.hidden, start.activation, start.action_scale)
             init_policy = init_params(mlp_config, jax.random.PRNGKey(start.seed + 1))
     num_updates = -(-int(settings["num_timesteps"]) // ppo_config.steps_per_update)
     schedule = Schedule(num_updates=num_updates, **settings["schedule"])

@@ -6,6 +6,10 @@ seeds), compiled once per run. The initial policy is evaluated before the first 
 the log starts from the pretrained success rate and `best/` is never worse than the start.
 A checkpoint holds the training state and the best policy so far, so a resumed run continues
 exactly, `best/` included, whatever the interruption lost.
+
+The summary compares the final policy with the initial one on the same validation seeds, paired
+(exact McNemar test, Newcombe interval): nothing selects the final policy on those seeds, so the
+comparison is honest, where `best/`'s validation rate is the maximum of several looks.
 """
 
 from __future__ import annotations
@@ -17,10 +21,13 @@ from collections.abc import Callable
 from typing import Any
 
 import jax
+import numpy as np
 
 from openral_mjx.core.errors import ConfigError
+from openral_mjx.core.files import write_json_atomic
 from openral_mjx.policies.mlp import CONFIG_FILE, MlpConfig, init_params, save_mlp
 from openral_mjx.scenes.base import Scene
+from openral_mjx.stats import paired_comparison
 from openral_mjx.training.evaluation import VALIDATION_SEEDS, EvalResult, HeldOutEvaluator
 from openral_mjx.training.ppo import PPO, PPOConfig
 from openral_mjx.training.run_dir import RunDir
@@ -62,6 +69,27 @@ def _eval_row(update: int, env_steps: int, r: EvalResult, best: bool) -> Row:
         "diverged": r.diverged,
         "eval_s": r.run_s + r.compile_s,
         "best": best,
+    }
+
+
+def _vs_init(init: str | None, final: np.ndarray) -> Row | None:
+    """The final policy against the initial one on the same validation seeds (paired); None
+    where the initial outcomes are unknown (a run checkpointed by an older version)."""
+    if init is None or len(init) != len(final):
+        return None
+    c = paired_comparison(np.array([x == "1" for x in init]), final)
+    return {
+        "n_episodes": c.n_a,
+        "init_successes": c.successes_a,
+        "final_successes": c.successes_b,
+        "difference": float(c.difference),
+        "ci_low": float(c.ci_low),
+        "ci_high": float(c.ci_high),
+        "confidence": float(c.confidence),
+        "test": c.test,
+        "p_value": float(c.p_value),
+        "only_init": c.only_a,
+        "only_final": c.only_b,
     }
 
 
@@ -113,7 +141,13 @@ class PPOSession:
             if init_policy is None:
                 raise ValueError("a new run needs init_policy")
             ts = jax.jit(self.ppo.init)(self._put(init_policy))
-            progress = {"best_eval": None, "best_update": -1, "wall_s": 0.0, "init": None}
+            progress = {
+                "best_eval": None,
+                "best_update": -1,
+                "wall_s": 0.0,
+                "init": None,
+                "init_successes": None,
+            }
             return ts, None, progress
         template = {
             "train": jax.eval_shape(self.ppo.init, template_policy),
@@ -158,10 +192,12 @@ class PPOSession:
         self.on_row({"kind": "compiled", "update": start, "compile_s": time.perf_counter() - t0})
         wall = wall_start = float(progress["wall_s"])
         last_eval: EvalResult | None = None
+        last_success: np.ndarray | None = None
 
         def evaluate(update: int) -> None:
-            nonlocal last_eval, best_params
-            r = last_eval = evaluator(ts.policy)
+            nonlocal last_eval, last_success, best_params
+            r, last_success = evaluator.run(ts.policy)
+            last_eval = r
             best = (
                 progress["best_eval"] is None
                 or r.success_rate > progress["best_eval"]["success_rate"]
@@ -172,6 +208,9 @@ class PPOSession:
                 self._save_policy(self.dir.best, best_params, update, r)
             if update == 0:
                 progress["init"] = dataclasses.asdict(r)
+                self._save_policy(self.dir.init, ts.policy, 0, r)
+                # per validation seed, "0"/"1": the final summary's paired comparison
+                progress["init_successes"] = "".join("01"[int(x)] for x in last_success)
             self._emit(_eval_row(update, update * self.steps_per_update, r, best))
 
         if start == 0:
@@ -203,10 +242,10 @@ class PPOSession:
                 tree = {"train": jax.device_get(ts), "best": best_params}
                 self.dir.save_state(update, tree, progress, s.keep_checkpoints)
         if last_eval is None:  # resumed at the end: nothing left to train
-            last_eval = evaluator(ts.policy)
+            last_eval, last_success = evaluator.run(ts.policy)
         self._save_policy(self.dir.final, ts.policy, s.num_updates, last_eval)
         trained = s.num_updates - start
-        return {
+        summary = {
             "kind": "summary",
             "update": s.num_updates,
             "env_steps": s.num_updates * self.steps_per_update,
@@ -217,6 +256,10 @@ class PPOSession:
             else None,
             "init": progress["init"],
             "final_success_rate": last_eval.success_rate,
+            "final_mean_return": last_eval.mean_return,
+            "final_vs_init": _vs_init(progress.get("init_successes"), last_success),
             "best_success_rate": progress["best_eval"]["success_rate"],
             "best_update": progress["best_update"],
         }
+        write_json_atomic(self.dir.summary_path, summary)
+        return summary

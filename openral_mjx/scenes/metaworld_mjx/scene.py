@@ -43,7 +43,7 @@ from openral_mjx.scenes.composition import cylinders_as_prisms
 from openral_mjx.scenes.metaworld_mjx import task as mw
 from openral_mjx.scenes.metaworld_mjx.assets import load_spec
 from openral_mjx.scenes.metaworld_mjx.options import MetaWorldMjxOptions
-from openral_mjx.scenes.metaworld_mjx.tasks import TASKS
+from openral_mjx.scenes.metaworld_mjx.tasks import TASKS, check_reward
 
 N_DRAWS = 32  # candidate random vectors per reset; P(no draw accepted) is negligible
 OBS_SIZES = {"hand": 3, "gripper": 1, "objects": 14, "prev": 18, "goal": 3}
@@ -242,6 +242,11 @@ class MetaWorldMjx(Scene):
         )
         q = physics.quantities
         return q.qpos, q.qvel
+
+    def check_reward(self) -> None:
+        """`ConfigError` unless this task's reward is MetaWorld's (other tasks return 0):
+        `finetune ppo` asks before training."""
+        check_reward(self.task)
 
     def episode_factors(self, state: State) -> dict[str, jax.Array]:
         """The drawn object and goal positions (MetaWorld's random vector, first 6)."""

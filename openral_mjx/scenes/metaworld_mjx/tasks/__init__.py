@@ -6,6 +6,7 @@ from __future__ import annotations
 import importlib
 import pkgutil
 
+from openral_mjx.core.errors import ConfigError
 from openral_mjx.scenes.metaworld_mjx.task import MirrorTask
 
 
@@ -21,3 +22,18 @@ def _collect() -> dict[str, MirrorTask]:
 
 
 TASKS: dict[str, MirrorTask] = _collect()
+
+
+def rewarded_tasks() -> list[str]:
+    """The tasks whose reward is MetaWorld's (`MirrorTask.has_reward`); the others return 0."""
+    return sorted(name for name, task in TASKS.items() if task.has_reward)
+
+
+def check_reward(task: str) -> None:
+    """Refuse `task` for training where the mirror does not compute MetaWorld's reward."""
+    if not TASKS[task].has_reward:
+        raise ConfigError(
+            f"metaworld_mjx task {task!r} has no reward: the mirror computes MetaWorld's reward "
+            f"only for {', '.join(rewarded_tasks())} (elsewhere it is 0, so PPO would learn "
+            f"nothing); finetune one of those, or evaluate {task} with openral_mjx.eval"
+        )

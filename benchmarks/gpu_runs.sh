@@ -27,6 +27,22 @@ case ${1:?stage} in
     python3 -m openral_mjx.evaluation.metaworld_agreement --tasks ${TASKS:-reach-v3 push-v3 \
       pick-place-v3 door-open-v3 drawer-close-v3} --backend ${BACKEND:-warp} --seeds 500 \
       --traj-seeds 8 --workers "$(nproc)" --out "$out/metaworld_agreement_gpu.json" ;;
+  rand-test)   # issue 22: per-env physics fields on mjx and warp against MuJoCo C (GPU)
+    python3 -m pytest -q -p no:cacheprovider tests/test_per_env_fields.py -m "slow or not slow" \
+      -k physics 2>&1 | tail -3 ;;
+  rand-cost)   # issue 22: randomisation's cost on tabletop_push, nominal vs 9 factors, 4,096 envs
+    R="friction=0.3:1.2 mass=0.5x:2x kp=0.7x:1.3x damping=0.5x:2x armature=0.5x:2x delay=0:2"
+    R="$R action_noise=0:0.02 joint_noise=0:0.005 object_noise=0:0.003"
+    for b in ${BACKENDS:-warp mjx}; do
+      for scene in ${SCENES:-tabletop_push}; do
+        ev ${scene}_${b}_nominal --scene $scene --backend $b --n-envs 4096 --n-episodes 16384 --batching chunks
+        ev ${scene}_${b}_random --scene $scene --backend $b --n-envs 4096 --n-episodes 16384 \
+          --batching chunks --randomize $R
+      done
+    done ;;
+  rand-sweep)  # issue 22: a robustness curve on the GPU, the same 4,096 seeds at each value
+    ev push_sweep_${FACTOR:-friction} --backend ${BACKEND:-warp} --n-envs 4096 \
+      --sweep ${SWEEP:-friction=0.02:0.62:7} ;;
   warp-push)   # issue 7 / 2: tabletop_push on warp vs raw Warp and 16-core C; 100k seeds (issue 6)
     python3 -m openral_mjx.bench --backend warp --n 4096 16384 65536 --out "$out/bench_warp_push.json"
     ev push_warp_100k --backend warp --n-envs 50000 --n-episodes 100000

@@ -5,8 +5,8 @@
 #   later calls:      source benchmarks/gpu_setup.sh
 set -e
 export PYTHONPATH=/tmp/site:$PWD PYTHONUNBUFFERED=1
-# .gpu may come split over two calls (.gpu and .gpu2) to make room beside other carried folders.
-for d in .gpu .gpu2; do
+# .gpu may come split over calls (.gpu, .gpu2; .gpu3: brax for finetune) to fit beside the rest.
+for d in .gpu .gpu2 .gpu3; do
   if [ -d "$d" ] && [ ! -f "/tmp/site/$d-done" ]; then
     # each set to its own folder, then merged: pip --target skips a package folder that is
     # already there (mujoco/ holds both mujoco's and mujoco-mjx's files)

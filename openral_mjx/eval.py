@@ -30,9 +30,11 @@ from openral_mjx.evaluation.frames import check_frames, record_frames, save_fram
 from openral_mjx.evaluation.replay import EpisodeTrace, choose_seeds, trace_episodes
 from openral_mjx.evaluation.run import check_run
 from openral_mjx.evaluation.suite import evaluate_suite, format_tasks
+from openral_mjx.evaluation.sweep import parse_sweep, run_sweep
 from openral_mjx.physics import BACKEND_NAMES
 from openral_mjx.policies import POLICIES
 from openral_mjx.report import EvalReport, load_report, save_report
+from openral_mjx.report.sweep import SweepReport, save_sweep
 from openral_mjx.robots import ROBOTS
 from openral_mjx.runner import check_batching, processes
 from openral_mjx.runner.compile_cache import enable_compilation_cache
@@ -44,10 +46,11 @@ from openral_mjx.scenes import (
     scene_options,
     scene_suite,
 )
+from openral_mjx.scenes.randomization import parse_factors
 from openral_mjx.stats import compare_reports, format_breakdown, format_comparison
 from openral_mjx.viz import require_viz
 from openral_mjx.viz.gl import GLUnavailable, camera_id, gl_backend
-from openral_mjx.viz.plots import write_plots
+from openral_mjx.viz.plots import save_png, sweep_curve, write_plots
 from openral_mjx.viz.video import default_camera, write_episode_video
 
 
@@ -97,6 +100,14 @@ class EvalArgs:
     """YAML file of scene options (see configs/)."""
     opt: tuple[str, ...] = ()
     """Scene option overrides, KEY=VALUE (after --config)."""
+    randomize: tuple[str, ...] = ()
+    """Factors drawn per seed, NAME=LOW:HIGH (LOWx:HIGHx: multiples of the model's values) or
+    NAME=VALUE: friction, mass, kp, damping, armature (physics), delay, action_noise
+    (control), joint_noise, object_noise, depth_noise, depth_dropout (sensing). Each is an
+    episode factor in the report's breakdown."""
+    sweep: str | None = None
+    """NAME=LOW:HIGH:N: run the same seeds at N evenly spaced values of one factor; writes a
+    sweep report (success per value, paired tests between neighbours, Holm-corrected)."""
     threads: int | None = None
     """Threads of the C backend (default: all cores)."""
     contacts_per_env: int | None = None
@@ -207,6 +218,7 @@ def validate(args: EvalArgs) -> EvalPlan:
         )
     if args.suite is not None:
         _check_suite(args, want_video)
+    _check_randomize(args, want_video)
     out = args.out or _default_out(args)
     check_writable(out)
     baseline = None
@@ -223,7 +235,38 @@ def validate(args: EvalArgs) -> EvalPlan:
 def _default_out(args: EvalArgs) -> Path:
     stamp = dt.datetime.now().strftime("%Y%m%d-%H%M%S")
     policy_tag = re.sub(r"[^A-Za-z0-9_.-]+", "-", args.policy).strip("-")  # mlp:a/b: mlp-a-b
-    return Path("results") / f"{args.scene}_{policy_tag}_{stamp}.json"
+    kind = "" if args.sweep is None else f"_sweep-{args.sweep.partition('=')[0]}"
+    return Path("results") / f"{args.scene}_{policy_tag}{kind}_{stamp}.json"
+
+
+def _check_randomize(args: EvalArgs, want_video: bool) -> None:
+    """`--randomize` and `--sweep` parse, and combine only with what they support."""
+    if not args.randomize and args.sweep is None:
+        return
+    ranges = parse_factors(args.randomize)
+    if SCENES.get(args.scene).backends is not None:
+        raise ConfigError(
+            f"scene {args.scene!r} runs in host workers: --randomize/--sweep need a MuJoCo "
+            "scene (mjx, warp or c)"
+        )
+    if args.suite is not None:
+        raise ConfigError("--randomize/--sweep take one task: drop --suite")
+    if args.sweep is None:
+        return
+    parse_sweep(args.sweep, ranges)
+    extras = [
+        flag
+        for flag, on in (
+            ("--target-halfwidth", args.target_halfwidth is not None),
+            ("--video", want_video),
+            ("--frames", args.frames > 0),
+            ("--compare-with", args.compare_with is not None),
+            ("--processes", args.processes != 1),
+        )
+        if on
+    ]
+    if extras:
+        raise ConfigError(f"--sweep runs one report over its grid: drop {', '.join(extras)}")
 
 
 def _scene_options(args: EvalArgs) -> dict:
@@ -306,6 +349,10 @@ def _reproduce(args: EvalArgs, backend: str, out: Path) -> str:
     ):
         if value is not None:
             argv += [flag, str(value)]
+    if args.sweep is not None:
+        argv += ["--sweep", args.sweep]
+    if args.randomize:
+        argv += ["--randomize", *args.randomize]
     if args.opt:
         argv += ["--opt", *args.opt]
     return command_line("openral_mjx.eval", argv)
@@ -341,6 +388,7 @@ def build(plan: EvalPlan, owned: contextlib.ExitStack) -> Built:
         threads=args.threads,
         contacts_per_env=args.contacts_per_env,
         devices=args.devices,
+        randomize=args.randomize if args.sweep is None else (),
     )
     owned.callback(scene.close)
     check_frames(scene, args.frames)
@@ -364,7 +412,9 @@ def build(plan: EvalPlan, owned: contextlib.ExitStack) -> Built:
 # ---- execute ---------------------------------------------------------------------------------
 
 
-def execute(plan: EvalPlan, built: Built, owned: contextlib.ExitStack) -> Evaluation | EvalReport:
+def execute(
+    plan: EvalPlan, built: Built, owned: contextlib.ExitStack
+) -> Evaluation | EvalReport | SweepReport:
     """Run the evaluation (a suite: every task in turn) under a progress bar; an `Evaluation`
     keeps its scene and arrays for what `write` re-simulates."""
     args = plan.args
@@ -406,6 +456,30 @@ def execute(plan: EvalPlan, built: Built, owned: contextlib.ExitStack) -> Evalua
                 on_chunk=lambda done, total, _: progress.update(bar, completed=done, total=total),
             )
         assert built.scene is not None
+        if args.sweep is not None:
+
+            def on_point(i: int, n: int, value: float) -> None:
+                name = args.sweep.partition("=")[0]
+                progress.update(
+                    bar, description=f"{name}={value:g} ({i + 1}/{n})", completed=0, total=None
+                )
+
+            return run_sweep(
+                built.scene,
+                args.policy,
+                args.sweep,
+                randomize=parse_factors(args.randomize),
+                on_point=on_point,
+                command=plan.command,
+                n_envs=args.n_envs,
+                n_episodes=args.n_episodes,
+                factor_bins=args.factor_bins,
+                seed=args.seed,
+                max_steps=args.max_steps,
+                on_chunk=on_chunk,
+                batching=args.batching,
+                refill_every=args.refill_every,
+            )
         evaluation = run_evaluation(
             built.scene,
             args.policy,
@@ -532,6 +606,21 @@ def show(plan: EvalPlan, written: Written) -> None:
         raise GLUnavailable(f"cannot render videos: {written.no_gl}")
 
 
+def write_sweep(plan: EvalPlan, report: SweepReport) -> list[Path]:
+    """Write the sweep report (atomically) and, with --plots, its curve; the plots written."""
+    save_sweep(report, plan.out)
+    if not plan.args.plots:
+        return []
+    return [save_png(sweep_curve(report), plan.stem.with_name(f"{plan.stem.name}_sweep.png"))]
+
+
+def show_sweep(plan: EvalPlan, report: SweepReport, plots: list[Path]) -> None:
+    print(report.summary())
+    print(f"report: {plan.out}")
+    for path in plots:
+        print(f"plot: {path}")
+
+
 def sequential_summary(report: EvalReport) -> str:
     """One line on how a sequential run stopped."""
     s = report.sequential
@@ -577,9 +666,12 @@ def run(args: EvalArgs) -> int:
     with contextlib.ExitStack() as owned:  # worker processes and policy servers end with the run
         built = build(plan, owned)
         result = execute(plan, built, owned)
-        written = write(plan, built, result)
-        if written is not None:
-            show(plan, written)
+        if isinstance(result, SweepReport):
+            show_sweep(plan, result, write_sweep(plan, result))
+        else:
+            written = write(plan, built, result)
+            if written is not None:
+                show(plan, written)
     processes.finish()
     return 0
 

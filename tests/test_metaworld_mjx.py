@@ -90,3 +90,39 @@ def test_mjx_starts_where_c_does():
     obs_c = jax.jit(jax.vmap(c.reset_from))(vecs).obs
     obs_m = jax.jit(jax.vmap(m.reset_from))(vecs).obs
     np.testing.assert_allclose(np.asarray(obs_m), np.asarray(obs_c), atol=RESET_TOL)
+
+
+def test_randomized_mirror_varies_the_object_only():
+    """`--randomize` on the mirror: the free object's mass (and MuJoCo C's `dof_M0` for it)
+    and its friction with the table per env, noise on the objects' observed poses only, and a
+    delayed hand that stands still; the initial state stays MetaWorld's."""
+    from openral_mjx.scenes.randomization import INFO_KEY, randomize
+
+    base = make_scene("metaworld_mjx", {"task": "push-v3"}, backend="c")
+    scene = randomize(base, ["mass=0.5x:2x", "friction=0.2:1.0", "object_noise=0.01", "delay=2"])
+    seeds = jax.numpy.array([1, 2, 3])
+    keys = jax.vmap(lambda s: jax.random.split(jax.random.PRNGKey(s), 2)[0])(seeds)
+    state = jax.jit(jax.vmap(scene.reset))(keys)
+    nominal = jax.jit(jax.vmap(base.reset))(keys)
+    np.testing.assert_array_equal(state.physics.quantities.qpos, nominal.physics.quantities.qpos)
+    m = base.mj_model
+    obj = m.body("obj").id
+    values = state.info[INFO_KEY]["values"]
+    fields = state.physics.fields
+    np.testing.assert_allclose(
+        fields["body_mass"][:, obj], m.body_mass[obj] * values["mass"], rtol=1e-6
+    )
+    dofs = np.flatnonzero(m.dof_bodyid == obj)
+    np.testing.assert_allclose(
+        fields["dof_M0"][:, dofs[0]], m.dof_M0[dofs[0]] * values["mass"], rtol=1e-6
+    )
+    noise = np.asarray(state.obs - nominal.obs)
+    start, size = base.obs_layout["objects"]
+    assert np.abs(noise[:, start : start + 3]).max() > 0
+    np.testing.assert_array_equal(np.delete(noise, np.arange(start, start + size), 1), 0.0)
+    # Two steps of delay: the hand holds still whatever the policy commands.
+    step = jax.jit(jax.vmap(scene.step))
+    hand = np.asarray(state.info[INFO_KEY]["obs"][:, :3])
+    for _ in range(2):
+        state = step(state, jax.numpy.ones((3, 4)))
+    np.testing.assert_allclose(state.info[INFO_KEY]["obs"][:, :3], hand, atol=2e-3)

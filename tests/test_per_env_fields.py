@@ -7,6 +7,8 @@ time. The reference steps MuJoCo C directly on a model copy with that env's post
 
 from __future__ import annotations
 
+import copy
+
 import jax
 import jax.numpy as jnp
 import mujoco
@@ -14,7 +16,7 @@ import numpy as np
 import pytest
 
 from openral_mjx.core.errors import ConfigError
-from openral_mjx.physics import PhysicsSettings, QuantitySpec, make_backend
+from openral_mjx.physics import PhysicsSettings, QuantitySpec, c_backend, make_backend
 
 XML = """
 <mujoco>
@@ -103,14 +105,34 @@ def test_reference_envs_differ(expected):
 
 
 @pytest.mark.parametrize("backend", ["c", "mjx", pytest.param("warp", marks=pytest.mark.slow)])
-def test_per_env_body_pos_and_mocap(backend, expected):
+def test_per_env_body_pos_and_mocap(backend, expected, monkeypatch):
     if backend == "warp":
         pytest.importorskip("warp")
+    # c: no memory budget for model copies, so one thread steps the five envs in two slices
+    monkeypatch.setattr(c_backend, "COPY_BUDGET", 0)
     balls, posts, fields = simulate(backend)
     np.testing.assert_allclose(posts[:, 0], POSTS, atol=1e-6)  # each env's own post
     np.testing.assert_array_equal(fields[:, 0], POSTS.astype(np.float32))  # carried along
     tol = 1e-5 if backend == "c" else 5e-3  # c: the same engine; mjx/warp: float32, own solver
     np.testing.assert_allclose(balls, expected, atol=tol)
+
+
+def test_c_model_copies_forget_fields_no_longer_given():
+    """A per-env copy written with one set of fields, then stepped with another, holds the
+    model's own values of the fields it is no longer given, and rewrites only changed rows."""
+    b = make_backend("c", mujoco.MjSpec.from_string(XML), QuantitySpec(), SUBSTEPS)
+    m = b.host_model
+    moved = np.repeat(m.body_pos[None], 2, 0) + 0.5
+    b._models(2, ("body_pos",), (moved,))
+    models = b._models(2, ("dof_damping",), (np.full((2, m.nv), 3.0),))
+    for c in models:
+        np.testing.assert_array_equal(c.body_pos, m.body_pos)
+        np.testing.assert_array_equal(c.dof_damping, 3.0)
+    models[1].dof_damping[:] = 7.0  # unchanged values are not written again...
+    models = b._models(2, ("dof_damping",), (np.full((2, m.nv), 3.0),))
+    assert models[1].dof_damping[0] == 7.0
+    models = b._models(2, ("dof_damping",), (np.full((2, m.nv), 4.0),))  # ...changed ones are
+    assert models[1].dof_damping[0] == 4.0
 
 
 def test_unknown_field_is_a_config_error():
@@ -119,3 +141,128 @@ def test_unknown_field_is_a_config_error():
     m = backend.mj_model
     with pytest.raises(ConfigError, match=r"cannot vary per env.*body_pos"):
         backend.init(jnp.asarray(m.qpos0), jnp.zeros(m.nv), fields={"opt_timestep": jnp.ones(())})
+
+
+# ---- the physics fields `--randomize` varies ---------------------------------------------------
+
+PHYSICS_XML = """
+<mujoco>
+  <option timestep="0.004"/>
+  <worldbody>
+    <geom name="floor" type="plane" size="1 1 0.1" friction="0.05 0.005 0.0001"/>
+    <body name="puck" pos="0 0 0.021">
+      <freejoint/><geom name="puck" type="box" size="0.02 0.02 0.02" mass="0.1"/>
+    </body>
+    <body name="slider" pos="0 0.5 0.05">
+      <joint name="slide" type="slide" axis="1 0 0" damping="0.5" armature="0.01"/>
+      <geom type="box" size="0.02 0.02 0.02" mass="0.3" contype="0" conaffinity="0"/>
+    </body>
+  </worldbody>
+  <actuator><position joint="slide" kp="20"/></actuator>
+</mujoco>
+"""
+# Per env: puck friction, slider mass, servo kp, joint damping, joint armature.
+PHYSICS = np.array(
+    [
+        [0.1, 0.3, 20.0, 0.5, 0.01],
+        [0.3, 0.6, 10.0, 1.5, 0.05],
+        [0.6, 0.2, 40.0, 0.1, 0.002],
+        [0.9, 1.0, 5.0, 3.0, 0.1],
+    ]
+)
+
+
+def physics_fields(m: mujoco.MjModel) -> dict[str, np.ndarray]:
+    """The model fields of each env (float32, as a JAX state carries them)."""
+    n = len(PHYSICS)
+    out = {
+        k: np.repeat(getattr(m, k)[None], n, 0).astype(np.float32)
+        for k in (
+            "geom_friction",
+            "body_mass",
+            "body_inertia",
+            "actuator_gainprm",
+            "actuator_biasprm",
+            "dof_damping",
+            "dof_armature",
+        )
+    }
+    puck, slider, dof = m.geom("puck").id, m.body("slider").id, m.joint("slide").dofadr[0]
+    for i, (friction, mass, kp, damping, armature) in enumerate(PHYSICS):
+        out["geom_friction"][i, puck, 0] = friction
+        out["body_inertia"][i, slider] *= mass / m.body_mass[slider]
+        out["body_mass"][i, slider] = mass
+        out["actuator_gainprm"][i, 0, 0] = kp
+        out["actuator_biasprm"][i, 0, 1] = -kp
+        out["dof_damping"][i, dof] = damping
+        out["dof_armature"][i, dof] = armature
+    # MuJoCo C reads a simple body's inertia from `dof_M0`, which `mj_setConst` derives.
+    out["dof_M0"] = np.repeat(m.dof_M0[None], n, 0).astype(np.float32)
+    for i in range(n):
+        mi = copy.copy(m)
+        for k in ("body_mass", "body_inertia", "dof_armature"):
+            getattr(mi, k)[:] = out[k][i]
+        mujoco.mj_setConst(mi, mujoco.MjData(mi))
+        out["dof_M0"][i] = mi.dof_M0
+    return out
+
+
+def physics_reference() -> np.ndarray:
+    """(puck x, slider q) per env and step, from MuJoCo C on model copies with the env's
+    fields (the same float32 values)."""
+    m = mujoco.MjModel.from_xml_string(PHYSICS_XML)
+    fields = physics_fields(m)
+    out = np.zeros((len(PHYSICS), STEPS, 2))
+    for i in range(len(PHYSICS)):
+        mi = mujoco.MjModel.from_xml_string(PHYSICS_XML)
+        for k, v in fields.items():
+            getattr(mi, k)[:] = v[i]
+        d = mujoco.MjData(mi)
+        d.qvel[0] = 1.0  # the puck slides off at 1 m/s
+        mujoco.mj_forward(mi, d)
+        for t in range(STEPS):
+            d.ctrl[:] = 0.2
+            mujoco.mj_step(mi, d, nstep=SUBSTEPS)
+            out[i, t] = d.qpos[0], d.qpos[7]
+    return out
+
+
+@pytest.mark.parametrize(
+    "backend",
+    [
+        "c",
+        # ~35 s of MJX compile on 2 cores; run with -m slow (benchmarks/gpu_runs.sh rand-test)
+        pytest.param("mjx", marks=pytest.mark.slow),
+        pytest.param("warp", marks=pytest.mark.slow),
+    ],
+)
+def test_per_env_physics_fields(backend):
+    """Friction, mass (with inertia), servo gain, damping and armature, each env its own:
+    trajectories match MuJoCo C on per-env model copies, and they differ between envs.
+    `dof_M0` comes along as `mj_setConst` derives it (MuJoCo C's inertia of simple bodies;
+    MJX computes it from the mass)."""
+    if backend == "warp":
+        pytest.importorskip("warp")
+    expected = physics_reference()
+    assert np.ptp(expected[:, -1, 0]) > 0.05 and np.ptp(expected[:, -1, 1]) > 0.02
+    b = make_backend(
+        backend,
+        mujoco.MjSpec.from_string(PHYSICS_XML),
+        QuantitySpec(),
+        SUBSTEPS,
+        PhysicsSettings(threads=1),
+    )
+    m = b.mj_model
+    fields = {k: jnp.asarray(v) for k, v in physics_fields(m).items()}
+    n = len(PHYSICS)
+    qpos = jnp.tile(jnp.asarray(m.qpos0, jnp.float32), (n, 1))
+    qvel = jnp.zeros((n, m.nv), jnp.float32).at[:, 0].set(1.0)
+    state = jax.jit(jax.vmap(b.init))(qpos, qvel, fields)
+    step = jax.jit(jax.vmap(b.step))
+    out = []
+    for _ in range(STEPS):
+        state = step(state, jnp.full((n, 1), 0.2))
+        q = np.asarray(state.quantities.qpos)
+        out.append(np.stack([q[:, 0], q[:, 7]], 1))
+    tol = 1e-5 if backend == "c" else 2e-3  # c: the same engine; mjx/warp: float32, own solver
+    np.testing.assert_allclose(np.stack(out, 1), expected, atol=tol)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import datetime as dt
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 import jax
@@ -26,7 +26,7 @@ from openral_mjx.runner import (
     resolve_batching,
     run_seeds,
 )
-from openral_mjx.scenes import Scene, make_scene
+from openral_mjx.scenes import Scene, make_scene, randomization
 from openral_mjx.stats.breakdown import breakdown
 from openral_mjx.stats.intervals import wilson_interval
 from openral_mjx.stats.sequential import RULE
@@ -65,16 +65,19 @@ def build_scene(
     threads: int | None = None,
     contacts_per_env: int | None = None,
     devices: int | None = None,
+    randomize: Sequence[str] = (),
 ) -> Scene:
     """Scene `name` on `backend`, its buffers sized for batches of `n_envs`, on at most
-    `devices` devices (default: all the backend can use)."""
+    `devices` devices (default: all the backend can use), with the `randomize` factors
+    (``NAME=LOW:HIGH``, see `scenes.randomization`) drawn per seed."""
     check_counts(n_envs, 1, 1)
     if devices is not None and devices < 1:
         raise ConfigError(f"devices must be >= 1, got {devices}")
     settings = PhysicsSettings(threads=threads, batch_size=n_envs, max_devices=devices)
     if contacts_per_env is not None:
         settings = dataclasses.replace(settings, contacts_per_env=contacts_per_env)
-    return make_scene(name, options, backend=backend, settings=settings)
+    scene = make_scene(name, options, backend=backend, settings=settings)
+    return randomization.randomize(scene, randomize)
 
 
 @dataclasses.dataclass
@@ -149,13 +152,15 @@ def run_evaluation(
     step_rewards: bool = False,
     batching: str = "auto",
     refill_every: int = 1,
+    randomize: Sequence[str] = (),
 ) -> Evaluation:
     """`evaluate`, returning the report with the scene, policy and per-seed arrays that made
     it; `step_rewards` also keeps every step's reward (`arrays["rewards"]`, for plots).
     `batching` is `chunks` (fixed batches of `n_envs` seeds), `refill` (continuous batching:
     a slot whose episode ended takes the next seed, resets batched every `refill_every`
     control steps) or `auto` (`refill` where it applies: see `resolve_batching`); per seed
-    the episodes are the same."""
+    the episodes are the same. `randomize` draws factors per seed (``NAME=LOW:HIGH``, see
+    `scenes.randomization`) on the scene, built here or given."""
     rule, n_episodes = check_run(
         n_envs, n_episodes, target_halfwidth, max_episodes, max_steps, seed, factor_bins
     )
@@ -172,6 +177,7 @@ def run_evaluation(
                 devices=devices,
             )
             owned.callback(scene.close)
+        scene = randomization.randomize(scene, randomize)
         if isinstance(policy, str):
             pol = make_policy(policy, scene)
             if pol.close is not None:
@@ -277,6 +283,11 @@ def run_evaluation(
             **to_dict(scene.options),
             "backend": scene.backend.describe(),
             "batching": batching if batching == "chunks" else f"refill every {refill_every}",
+            **(
+                {"randomize": scene.describe()}
+                if isinstance(scene, randomization.Randomized)
+                else {}
+            ),
         },
         versions=package_versions(),
         command=command,

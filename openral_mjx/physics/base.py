@@ -104,10 +104,12 @@ PER_ENV_FIELDS = frozenset(
         "body_pos",
         "body_quat",
         "body_mass",
+        "body_inertia",
         "geom_friction",
         "site_pos",
         "dof_damping",
         "dof_armature",
+        "dof_M0",
         "actuator_gainprm",
         "actuator_biasprm",
     }

@@ -34,6 +34,9 @@ from openral_mjx.physics.base import (
 )
 
 _FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS
+# Memory the per-env model copies may take (envs with their own model fields): tabletop_push's
+# model is ~20 kB (every env of a batch gets its copy), MetaWorld's ~19 MB (13 at a time).
+COPY_BUDGET = 256 * 2**20
 _CTRL = int(mujoco.mjtState.mjSTATE_CTRL)
 _CTRL_MOCAP = (
     _CTRL | int(mujoco.mjtState.mjSTATE_MOCAP_POS) | int(mujoco.mjtState.mjSTATE_MOCAP_QUAT)
@@ -81,6 +84,7 @@ class CBackend(PhysicsBackend):
         self._pool: rollout.Rollout | None = None
         self._datas: list[mujoco.MjData] = []
         self._env_models: list[mujoco.MjModel] = []
+        self._written: dict[str, np.ndarray] = {}  # per copy: the field values written into it
         self._lock = threading.Lock()
         _LIVE.add(self)
 
@@ -155,22 +159,39 @@ class CBackend(PhysicsBackend):
     def _models(self, n: int, names: tuple[str, ...], values: tuple) -> list[mujoco.MjModel]:
         """`n` model copies with env i's `values` of fields `names` written into copy i.
 
-        Copies are kept and reused (every named field is rewritten each call); a model with
-        meshes copies its mesh data too (MetaWorld's: ~19 MB), so callers step envs with their
-        own fields in slices of `_slice` envs, not all at once."""
+        Copies are kept and reused. Each remembers what was written into it, so only the rows
+        whose values changed are written again (in a batch of running episodes: none), and a
+        field no longer named goes back to the model's own value. A model with meshes copies
+        its mesh data too (MetaWorld's: ~19 MB), so callers step envs with their own fields in
+        slices of `_slice` envs, as many as `COPY_BUDGET` holds."""
         while len(self._env_models) < n:
             self._env_models.append(copy.copy(self._model))
         models = self._env_models[:n]
+        for name in set(self._written) - set(names):  # restore what this call leaves alone
+            nominal = getattr(self._model, name)
+            for m in self._env_models:
+                getattr(m, name)[:] = nominal
+            del self._written[name]
         for name, value in zip(names, values, strict=True):
-            value = np.asarray(value, np.float64).reshape((n, *getattr(self._model, name).shape))
-            for m, v in zip(models, value, strict=True):
-                getattr(m, name)[:] = v
+            shape = getattr(self._model, name).shape
+            value = np.asarray(value, np.float64).reshape((n, *shape))
+            written = self._written.get(name)
+            if written is None or len(written) < len(self._env_models):
+                grown = np.full((len(self._env_models), *shape), np.nan)  # NaN: not known
+                if written is not None:
+                    grown[: len(written)] = written
+                written = self._written[name] = grown
+            changed = np.flatnonzero((value != written[:n]).reshape(n, -1).any(axis=1))
+            for i in changed:
+                getattr(models[i], name)[:] = value[i]
+            written[changed] = value[changed]
         return models
 
     @property
     def _slice(self) -> int:
-        """Envs per `rollout` call when each has its own model: a few per thread."""
-        return 4 * self.threads
+        """Envs per `rollout` call when each has its own model: as many model copies as
+        `COPY_BUDGET` bytes hold, and at least a few per thread."""
+        return max(4 * self.threads, COPY_BUDGET // max(1, mujoco.mj_sizeModel(self._model)))
 
     def _host_init(
         self, names: tuple[str, ...], qpos: np.ndarray, qvel: np.ndarray, *values

@@ -175,6 +175,7 @@ class EpisodeRunner:
             key = export_cache.cache_key(
                 program=program,
                 scene=[type(scene).__module__, type(scene).__qualname__, scene.name],
+                variant=scene.cache_parts(),
                 options=dataclasses.asdict(scene.options),
                 model=export_cache.model_digest(scene.mj_model),
                 backend=scene.backend.describe(),

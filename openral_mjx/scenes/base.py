@@ -8,10 +8,11 @@ backend-agnostic `Quantities`, so one scene definition runs on every backend.
 from __future__ import annotations
 
 import abc
+import dataclasses
 import functools
 import math
 import types
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from typing import Any
 
 import jax
@@ -37,6 +38,36 @@ class State:
     done: jax.Array
     metrics: dict[str, jax.Array]
     info: dict[str, Any]
+
+
+@dataclasses.dataclass(frozen=True)
+class RandomizationTargets:
+    """What `--randomize` may vary in a scene (`scenes.randomization`); an empty entry means
+    the scene has nothing for the factors that need it.
+
+    Attributes:
+        object_bodies: body ids of the manipulated objects (`mass`).
+        contact_geoms: ids of their colliding geoms and of the surfaces they rest on
+            (`friction`: MuJoCo takes the larger friction of two touching geoms, so both sides
+            are set).
+        arm_actuators: ids of the arm's position servos (`kp`).
+        arm_dofs: dof ids of the arm's joints (`damping`, `armature`).
+        joint_obs, object_obs: observation slices of joint positions and of object poses
+            (`joint_noise`, `object_noise`).
+        range_obs: depth and laser observation slices with the reading of no return (their
+            max range) (`depth_noise`, `depth_dropout`).
+        hold: the action that holds the robot where a state has it, the command a delayed
+            robot executes before the first one arrives (`delay`).
+    """
+
+    object_bodies: tuple[int, ...] = ()
+    contact_geoms: tuple[int, ...] = ()
+    arm_actuators: tuple[int, ...] = ()
+    arm_dofs: tuple[int, ...] = ()
+    joint_obs: tuple[str, ...] = ()
+    object_obs: tuple[str, ...] = ()
+    range_obs: tuple[tuple[str, float], ...] = ()
+    hold: Callable[[State], jax.Array] | None = None
 
 
 class Scene(abc.ABC):
@@ -97,6 +128,16 @@ class Scene(abc.ABC):
         pure JAX, one env. Default: none.
         """
         del state
+        return {}
+
+    def randomization_targets(self) -> RandomizationTargets | None:
+        """What `--randomize` may vary here (see `RandomizationTargets`); None: nothing (a host
+        scene's simulators are out of reach)."""
+        return None
+
+    def cache_parts(self) -> dict[str, Any]:
+        """What, beyond its class, name, options and model, determines this scene's compiled
+        code (the export cache keys on it). Default: nothing."""
         return {}
 
     # The camera videos show unless told otherwise (None: the model's first camera).
@@ -185,6 +226,32 @@ class Scene(abc.ABC):
         """Per-actuator (low, high) control limits."""
         r = jnp.asarray(self.mj_model.actuator_ctrlrange, dtype=jnp.float32)
         return r[:, 0], r[:, 1]
+
+
+def servo_hold(model: mujoco.MjModel, held: Mapping[int, float]) -> Callable[[State], jax.Array]:
+    """The action that holds a robot of position servos where a state has it: each joint
+    servo's target at its joint's position (times its gear), the others (`held`: actuator ->
+    control) at their fixed control."""
+    joint = model.actuator_trntype == mujoco.mjtTrn.mjTRN_JOINT
+    missing = [i for i in np.flatnonzero(~joint) if int(i) not in held]
+    if missing:
+        raise ValueError(f"actuators {missing} drive no joint and have no held control")
+    adr = np.where(joint, model.jnt_qposadr[model.actuator_trnid[:, 0]], 0)
+    gear = np.where(joint, model.actuator_gear[:, 0], 0.0).astype(np.float32)
+    fixed = np.array([held.get(i, 0.0) for i in range(model.nu)], np.float32)
+    is_joint = jnp.asarray(joint)
+
+    def hold(state: State) -> jax.Array:
+        q = state.physics.quantities.qpos[adr]
+        return jnp.where(is_joint, gear * q, fixed)
+
+    return hold
+
+
+def colliding_geoms(model: mujoco.MjModel, bodies: tuple[int, ...]) -> tuple[int, ...]:
+    """Ids of the colliding geoms of `bodies`."""
+    collides = (model.geom_contype != 0) | (model.geom_conaffinity != 0)
+    return tuple(int(g) for g in np.flatnonzero(np.isin(model.geom_bodyid, bodies) & collides))
 
 
 def obs_slices(sizes: Mapping[str, int]) -> dict[str, tuple[int, int]]:

@@ -103,3 +103,9 @@ def sensor_shapes(specs: tuple[SensorSpec, ...]) -> dict[str, tuple[int, ...]]:
 def sensor_obs(q: Quantities, shapes: dict[str, tuple[int, ...]]) -> list[jax.Array]:
     """The sensors' readings, flattened in `shapes` order (for concatenation into obs)."""
     return [jnp.reshape(q.sensors[k], (-1,)).astype(jnp.float32) for k in shapes]
+
+
+def range_slices(specs: tuple[SensorSpec, ...]) -> tuple[tuple[str, float], ...]:
+    """The depth cameras' and lasers' keys with their reading of no return (the max range):
+    what depth noise and dropout act on (`RandomizationTargets.range_obs`)."""
+    return tuple((sensor_key(s), float(s.max_range_m)) for s in specs if not isinstance(s, RgbSpec))

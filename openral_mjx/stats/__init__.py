@@ -10,6 +10,7 @@ from openral_mjx.stats.breakdown import breakdown, format_breakdown
 from openral_mjx.stats.comparison import (
     UNPAIRED_TESTS,
     Comparison,
+    holm_adjusted,
     mcnemar_exact_pvalue,
     newcombe_interval,
     newcombe_paired_interval,
@@ -49,6 +50,7 @@ __all__ = [
     "episodes_for_halfwidth",
     "format_breakdown",
     "format_comparison",
+    "holm_adjusted",
     "mcnemar_exact_pvalue",
     "newcombe_interval",
     "newcombe_paired_interval",

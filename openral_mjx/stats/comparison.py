@@ -203,3 +203,18 @@ def unpaired_comparison(
         ci_high=high,
         p_value=p,
     )
+
+
+def holm_adjusted(p_values: Any) -> np.ndarray:
+    """Holm's step-down adjustment of `p_values` for their number of comparisons: reject where
+    the adjusted value is <= alpha, and the family-wise error stays <= alpha under any
+    dependence between the tests (Holm 1979, Scand. J. Statist. 6: 65-70)."""
+    p = np.asarray(p_values, np.float64)
+    if p.ndim != 1:
+        raise ConfigError(f"p-values must be a 1-D array, got shape {p.shape}")
+    m = p.size
+    order = np.argsort(p, kind="stable")
+    stepped = np.minimum(1.0, np.maximum.accumulate((m - np.arange(m)) * p[order]))
+    out = np.empty(m)
+    out[order] = stepped
+    return out

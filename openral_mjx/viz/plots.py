@@ -4,7 +4,7 @@
 episode factor, against the overall rate. `episode_lengths`: how long episodes ran, split by
 outcome. `reward_curves`: the scene's per-step reward over the episode, by outcome, from the
 per-step rewards that `run_evaluation(step_rewards=True)` keeps (the report stores only
-totals).
+totals). `sweep_curve`: a sweep report's success against the swept factor.
 """
 
 from __future__ import annotations
@@ -17,6 +17,7 @@ import numpy as np
 
 from openral_mjx.core.files import atomic_path
 from openral_mjx.report import EvalReport
+from openral_mjx.report.sweep import SweepReport
 
 OUTCOME_COLORS = {"success": "#2a9d4b", "failure": "#c8553d", "diverged": "#6c5b7b"}
 MIN_RUNNING = 10  # reward curves are drawn while at least this many episodes of a group run
@@ -206,3 +207,38 @@ def write_plots(report: EvalReport, stem: Path, rewards: np.ndarray | None = Non
         path = stem.with_name(f"{stem.name}_reward.png")
         out.append(save_png(reward_curves(report, rewards), path))
     return out
+
+
+def sweep_curve(report: SweepReport) -> Any:
+    """Success rate (dot) with its interval (bar) at each value of the swept factor; a step
+    between neighbours whose paired test is significant after the Holm correction is drawn
+    red and marked with its adjusted p-value."""
+    fig = _figure(5.2, 3.4)
+    ax = fig.subplots()
+    x = np.array([p.value for p in report.points])
+    rate = np.array([p.success_rate for p in report.points])
+    low = np.array([p.ci_low for p in report.points])
+    high = np.array([p.ci_high for p in report.points])
+    ax.errorbar(x, rate, yerr=[rate - low, high - rate], fmt="o", color="#264653", capsize=3)
+    for i, s in enumerate(report.steps):
+        color = "#c8553d" if s.significant else "#8d99ae"
+        ax.plot(x[i : i + 2], rate[i : i + 2], color=color, lw=2 if s.significant else 1)
+        if s.significant:
+            ax.annotate(
+                f"p={s.p_adjusted:.2g}",
+                ((x[i] + x[i + 1]) / 2, (rate[i] + rate[i + 1]) / 2),
+                fontsize=7,
+                color=color,
+                ha="center",
+                va="bottom",
+            )
+    ax.set_xlabel(report.factor)
+    ax.set_ylabel("success rate")
+    ax.set_ylim(-0.02, 1.02)
+    _percent_axis(ax)
+    ax.set_title(
+        f"{report.scene} / {report.policy}: {report.n_episodes} seeds per point "
+        f"(95% Wilson; red: Holm p <= {report.alpha:g})",
+        fontsize=8,
+    )
+    return fig

@@ -37,9 +37,15 @@ from openral_mjx.physics import (
     make_backend,
     resolve_backend_name,
 )
-from openral_mjx.scenes.base import Scene, State, obs_slices
-from openral_mjx.scenes.metaworld import instruction as host_instruction
+from openral_mjx.scenes.base import (
+    RandomizationTargets,
+    Scene,
+    State,
+    colliding_geoms,
+    obs_slices,
+)
 from openral_mjx.scenes.composition import cylinders_as_prisms
+from openral_mjx.scenes.metaworld import instruction as host_instruction
 from openral_mjx.scenes.metaworld_mjx import task as mw
 from openral_mjx.scenes.metaworld_mjx.assets import load_spec
 from openral_mjx.scenes.metaworld_mjx.options import MetaWorldMjxOptions
@@ -176,6 +182,24 @@ class MetaWorldMjx(Scene):
 
     def action_bounds(self) -> tuple[jax.Array, jax.Array]:
         return -jnp.ones(4, jnp.float32), jnp.ones(4, jnp.float32)
+
+    def randomization_targets(self) -> RandomizationTargets:
+        """The task's free objects (mass; friction with the table), the objects' observed
+        poses; a delayed hand stands still with the gripper open, as MetaWorld resets it. The
+        hand moves by mocap: no arm servos or joints to vary."""
+        m = self.mj_model
+        free = mujoco.mjtJoint.mjJNT_FREE
+        objects = tuple(
+            sorted({int(m.jnt_bodyid[j]) for j in range(m.njnt) if m.jnt_type[j] == free})
+        )
+        contact = colliding_geoms(m, (*objects, m.body("tablelink").id)) if objects else ()
+        still = jnp.array([0.0, 0.0, 0.0, -1.0], jnp.float32)
+        return RandomizationTargets(
+            object_bodies=objects,
+            contact_geoms=contact,
+            object_obs=("objects",),
+            hold=lambda state: still,
+        )
 
     # ---- reset ----------------------------------------------------------------------------
 

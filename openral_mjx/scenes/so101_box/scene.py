@@ -18,9 +18,16 @@ from openral_mjx.physics.kinematics import site_kinematics
 from openral_mjx.policies.base import Policy
 from openral_mjx.policies.insert_expert import insert_expert
 from openral_mjx.robots import ROBOTS
-from openral_mjx.scenes.base import Scene, State, actuator_joints
+from openral_mjx.scenes.base import (
+    RandomizationTargets,
+    Scene,
+    State,
+    actuator_joints,
+    colliding_geoms,
+    servo_hold,
+)
 from openral_mjx.scenes.composition import yaw_quat
-from openral_mjx.scenes.sensor_obs import sensor_shapes
+from openral_mjx.scenes.sensor_obs import range_slices, sensor_shapes
 from openral_mjx.scenes.so101_box import observation
 from openral_mjx.scenes.so101_box import task as logic  # `task` is the scene's task name
 from openral_mjx.scenes.so101_box.model import compose
@@ -66,6 +73,7 @@ class So101Box(Scene):
         home[self.robot_qpos_adr] = o.robot_home
         self._qpos_home = jnp.asarray(home)
         self._layout = observation.obs_layout(len(self.robot_joint_ids), self.sensor_shapes)
+        self._range_slices = range_slices(sensors)
 
     @property
     def obs_layout(self) -> dict[str, tuple[int, int]]:
@@ -108,6 +116,21 @@ class So101Box(Scene):
         return logic.episode_factors(state.physics.quantities)
 
     # ---- step, task logic -----------------------------------------------------------------
+
+    def randomization_targets(self) -> RandomizationTargets:
+        """Block and tube are the objects, resting on the floor; the arm is every servo."""
+        m = self.mj_model
+        objects = (m.body("block").id, m.body("tube").id)
+        return RandomizationTargets(
+            object_bodies=objects,
+            contact_geoms=(*colliding_geoms(m, objects), m.geom("floor").id),
+            arm_actuators=tuple(range(m.nu)),
+            arm_dofs=tuple(int(d) for d in self.robot_dof_adr),
+            joint_obs=("joint_pos",),
+            object_obs=("tube_pos", "tube_quat", "block_pos", "block_quat"),
+            range_obs=self._range_slices,
+            hold=servo_hold(m, {}),
+        )
 
     def step(self, state: State, action: jax.Array) -> State:
         low, high = self.action_bounds()

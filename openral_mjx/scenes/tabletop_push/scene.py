@@ -22,9 +22,9 @@ from openral_mjx.physics import PhysicsSettings, PhysicsState, make_backend
 from openral_mjx.physics.kinematics import site_kinematics
 from openral_mjx.policies.base import Policy
 from openral_mjx.policies.push_expert import ForwardKinematics, push_expert
-from openral_mjx.scenes.base import Scene, State
+from openral_mjx.scenes.base import RandomizationTargets, Scene, State, servo_hold
 from openral_mjx.scenes.composition import yaw_quat
-from openral_mjx.scenes.sensor_obs import sensor_shapes
+from openral_mjx.scenes.sensor_obs import range_slices, sensor_shapes
 from openral_mjx.scenes.tabletop_push import observation
 from openral_mjx.scenes.tabletop_push import task as logic  # `task` is the scene's task name
 from openral_mjx.scenes.tabletop_push.arm import prepare
@@ -85,6 +85,7 @@ class TabletopPush(Scene):
             ]
         )
         self._layout = observation.obs_layout(len(self.robot_joint_ids), self.sensor_shapes)
+        self._range_slices = range_slices(sensors)
 
     @property
     def obs_layout(self) -> dict[str, tuple[int, int]]:
@@ -129,6 +130,20 @@ class TabletopPush(Scene):
     def episode_factors(self, state: State) -> dict[str, jax.Array]:
         """Randomised factors of the episode, from its reset state (see `task.episode_factors`)."""
         return logic.episode_factors(state.physics.quantities, state.info["goal_xy"])
+
+    def randomization_targets(self) -> RandomizationTargets:
+        """The cube (on the table) is the object; every servo that drives a joint is the arm."""
+        m = self.mj_model
+        return RandomizationTargets(
+            object_bodies=(m.body("cube").id,),
+            contact_geoms=(m.geom("cube").id, m.geom("table").id),
+            arm_actuators=tuple(i for i in range(m.nu) if i not in self.arm.held),
+            arm_dofs=tuple(int(d) for d in self.robot_dof_adr),
+            joint_obs=("joint_pos",),
+            object_obs=("cube_pos", "cube_quat"),
+            range_obs=self._range_slices,
+            hold=servo_hold(m, self.arm.held),
+        )
 
     # ---- video ----------------------------------------------------------------------------
 

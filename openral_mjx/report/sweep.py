@@ -1,0 +1,145 @@
+"""The sweep report: success against one factor's value on the same seeds (``--sweep``).
+
+One row per grid value (its rate and interval, and each seed's outcome, so any other paired
+statistic can be computed later) and one row per pair of neighbouring values (the paired
+difference, its interval, the exact McNemar p-value and its Holm adjustment over all pairs).
+Written atomically as JSON, read back strictly.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from pathlib import Path
+from typing import Any
+
+from openral_mjx.core.errors import ConfigError
+from openral_mjx.core.files import write_text_atomic
+
+SWEEP_SCHEMA_VERSION = "openral_mjx.sweep/1"
+
+
+@dataclasses.dataclass
+class SweepPoint:
+    """One grid value: the run's rate, its 95% Wilson interval, and per seed (in seed order)
+    "1" for a success and "0" otherwise."""
+
+    value: float
+    n_episodes: int
+    successes: int
+    success_rate: float
+    ci_low: float
+    ci_high: float
+    diverged: int
+    episodes_per_s: float
+    outcomes: str
+
+
+@dataclasses.dataclass
+class SweepStep:
+    """From one grid value to the next, on the same seeds: rate(to) - rate(from) with
+    Newcombe's paired interval, the exact McNemar p-value, Holm-adjusted over every step,
+    and whether the adjusted value is <= the sweep's alpha."""
+
+    from_value: float
+    to_value: float
+    difference: float
+    ci_low: float
+    ci_high: float
+    p_value: float
+    p_adjusted: float
+    significant: bool
+
+
+@dataclasses.dataclass
+class SweepReport:
+    """A sweep of `factor` (``NAME=LOW:HIGH:N`` as given; `relative`: multiples of the
+    model's values) on seeds `seed .. seed + n_episodes - 1`, with `randomize` (the other
+    factors, drawn per seed as in any randomised run) held the same at every point."""
+
+    scene: str
+    task: str
+    policy: str
+    backend: str
+    device: str
+    factor: str
+    sweep: str
+    relative: bool
+    randomize: list[str]
+    seed: int
+    n_episodes: int
+    alpha: float
+    correction: str
+    points: list[SweepPoint]
+    steps: list[SweepStep]
+    compile_s: float
+    run_s: float
+    command: str
+    created_at: str
+    versions: dict[str, str]
+    schema_version: str = SWEEP_SCHEMA_VERSION
+
+    def to_dict(self) -> dict[str, Any]:
+        return dataclasses.asdict(self)
+
+    @classmethod
+    def from_dict(cls, data: Any) -> SweepReport:
+        """Strict: another schema version, a missing or an unknown field is a `ConfigError`."""
+        if not isinstance(data, dict) or data.get("schema_version") != SWEEP_SCHEMA_VERSION:
+            got = data.get("schema_version") if isinstance(data, dict) else None
+            raise ConfigError(
+                f"sweep schema {got!r} is not supported; valid: {SWEEP_SCHEMA_VERSION}"
+            )
+        data = dict(data)
+        data["points"] = [_build(SweepPoint, p, "points") for p in data.get("points", [])]
+        data["steps"] = [_build(SweepStep, s, "steps") for s in data.get("steps", [])]
+        return _build(cls, data, "sweep report")
+
+    def summary(self) -> str:
+        """The table the CLI prints: rate per value, then where success changes."""
+        lines = [f"{self.scene}/{self.policy} on {self.backend}: sweep {self.sweep}"]
+        for p in self.points:
+            lines.append(
+                f"  {self.factor} = {p.value:<10g} success {100 * p.success_rate:5.1f}% "
+                f"[{100 * p.ci_low:5.1f}, {100 * p.ci_high:5.1f}]  {p.successes}/{p.n_episodes}"
+                + (f", {p.diverged} diverged" if p.diverged else "")
+            )
+        for s in self.steps:
+            mark = "significant" if s.significant else "not significant"
+            lines.append(
+                f"  {s.from_value:g} -> {s.to_value:g}: {100 * s.difference:+.1f} points "
+                f"[{100 * s.ci_low:+.1f}, {100 * s.ci_high:+.1f}], McNemar p={s.p_value:.3g}, "
+                f"{self.correction} p={s.p_adjusted:.3g} ({mark} at {self.alpha:g})"
+            )
+        return "\n".join(lines)
+
+
+def _build(cls: type, data: Any, where: str) -> Any:
+    if not isinstance(data, dict):
+        raise ConfigError(f"{where}: expected an object, got {type(data).__name__}")
+    names = {f.name for f in dataclasses.fields(cls)}
+    required = {
+        f.name
+        for f in dataclasses.fields(cls)
+        if f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING
+    }
+    unknown_keys, missing = sorted(set(data) - names), sorted(required - set(data))
+    if unknown_keys or missing:
+        raise ConfigError(f"{where}: unknown fields {unknown_keys}, missing fields {missing}")
+    return cls(**data)
+
+
+def save_sweep(report: SweepReport, path: Path) -> None:
+    write_text_atomic(path, json.dumps(report.to_dict(), indent=1, allow_nan=False) + "\n")
+
+
+def load_sweep(path: Path) -> SweepReport:
+    """Read a sweep report back; every problem is a `ConfigError` naming the file."""
+    if not path.is_file():
+        raise ConfigError(f"sweep report {str(path)!r} does not exist")
+    try:
+        return SweepReport.from_dict(json.loads(path.read_text()))
+    except json.JSONDecodeError as e:
+        raise ConfigError(f"sweep report {str(path)!r} is not valid JSON: {e}") from None
+    except ConfigError as e:
+        raise ConfigError(f"sweep report {str(path)!r}: {e}") from None

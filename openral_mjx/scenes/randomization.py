@@ -1,0 +1,542 @@
+"""Per-env randomised factors (physics, control, sensing), sampled from each seed at reset.
+
+``--randomize friction=0.3:1.2 mass=0.5x:2x delay=0:3`` wraps a scene in `Randomized`. Each
+factor's value is drawn uniformly from its range with a key folded from the episode's reset
+key and the factor's name, so seed s always gets the same values, adding a factor leaves the
+others' values alone, and the initial state (drawn from the reset key itself) is the nominal
+run's: a randomised run is paired with the nominal one seed by seed. Values are constant
+within an episode and recorded as episode factors, so the report's breakdown and plots show
+success against each of them.
+
+Physics factors become per-env model fields (`PhysicsState.fields`: a batched `mjx.Model` on
+`mjx`/`warp`, per-env model copies on `c`). A range written ``LOWx:HIGHx`` multiplies the
+model's own values (recorded as ``NAME_scale``); a plain range sets them. Control factors act
+on the policy's action, sensing factors on the observation the policy reads; the scene's own
+logic (success, frame stacking) sees the true state.
+
+MuJoCo C takes the inertia of a "simple" body (a free object, a lone slider) from `dof_M0`,
+which `mj_setConst` derives from masses and armatures at compile time, so a mass or armature
+change rewrites it too (MJX computes it from the mass). The other derived constants
+(`body_invweight0`, `dof_invweight0`, which scale constraint softness) keep their nominal
+values, as in MuJoCo Playground's randomisation; every backend's per-env model agrees on this.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import zlib
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import mujoco
+import numpy as np
+
+from openral_mjx.core.errors import ConfigError, unknown
+from openral_mjx.scenes.base import RandomizationTargets, Scene, State
+
+INFO_KEY = "randomization"
+MAX_DELAY = 32
+
+
+@dataclasses.dataclass(frozen=True)
+class FactorKind:
+    """A factor the CLI can randomise: what it needs from the scene and which values are valid."""
+
+    help: str
+    target: str  # the `RandomizationTargets` entry it needs
+    relative: bool  # whether LOWx:HIGHx (a multiple of the model's values) is allowed
+    minimum: float = 0.0
+    positive: bool = False  # values must be > minimum (not >=)
+    maximum: float = np.inf
+    integer: bool = False
+    unit: str = ""
+
+
+FACTORS: dict[str, FactorKind] = {
+    "friction": FactorKind(
+        "sliding friction of the objects and the surfaces they rest on", "contact_geoms", True
+    ),
+    "mass": FactorKind(
+        "mass of the manipulated objects (inertia scaled with it)",
+        "object_bodies",
+        True,
+        positive=True,
+        unit="kg",
+    ),
+    "kp": FactorKind("position gain of the arm's servos", "arm_actuators", True, positive=True),
+    "damping": FactorKind("joint damping of the arm", "arm_dofs", True),
+    "armature": FactorKind("joint armature of the arm", "arm_dofs", True),
+    "delay": FactorKind(
+        "action delay in control steps",
+        "hold",
+        False,
+        maximum=MAX_DELAY,
+        integer=True,
+        unit="steps",
+    ),
+    "action_noise": FactorKind(
+        "std of Gaussian action noise, as a fraction of each action's range", "hold", False
+    ),
+    "joint_noise": FactorKind(
+        "std of Gaussian noise on observed joint positions", "joint_obs", False
+    ),
+    "object_noise": FactorKind(
+        "std of Gaussian noise on observed object poses", "object_obs", False, unit="m"
+    ),
+    "depth_noise": FactorKind(
+        "std of Gaussian noise on depth and laser readings", "range_obs", False, unit="m"
+    ),
+    "depth_dropout": FactorKind(
+        "probability that a depth pixel or laser beam returns nothing",
+        "range_obs",
+        False,
+        maximum=1.0,
+    ),
+}
+
+
+@dataclasses.dataclass(frozen=True)
+class FactorRange:
+    """One factor's range: values uniform in [low, high] (one value when equal); `relative`:
+    multiples of the model's own values."""
+
+    name: str
+    low: float
+    high: float
+    relative: bool = False
+
+    @property
+    def fixed(self) -> bool:
+        return self.low == self.high
+
+    @property
+    def label(self) -> str:
+        """The name episode factors and reports use (``NAME_scale`` for a multiple)."""
+        return f"{self.name}_scale" if self.relative else self.name
+
+    def text(self) -> str:
+        """The range as the CLI writes it."""
+        x = "x" if self.relative else ""
+        value = f"{self.low:g}{x}" if self.fixed else f"{self.low:g}{x}:{self.high:g}{x}"
+        return f"{self.name}={value}"
+
+
+def _number(name: str, text: str, item: str) -> tuple[float, bool]:
+    relative = text.endswith("x")
+    try:
+        return float(text[:-1] if relative else text), relative
+    except ValueError:
+        raise ConfigError(f"{item!r}: {text!r} is not a number (factor {name})") from None
+
+
+def _check_value(kind: FactorKind, name: str, value: float, relative: bool, item: str) -> None:
+    if relative:
+        if not value > 0:
+            raise ConfigError(f"{item!r}: a multiple must be > 0, got {value:g}x")
+        return
+    low_ok = value > kind.minimum if kind.positive else value >= kind.minimum
+    if not (low_ok and value <= kind.maximum):
+        side = ">" if kind.positive else ">="
+        top = f" and <= {kind.maximum:g}" if np.isfinite(kind.maximum) else ""
+        raise ConfigError(f"{item!r}: {name} must be {side} {kind.minimum:g}{top}, got {value:g}")
+    if kind.integer and value != int(value):
+        raise ConfigError(f"{item!r}: {name} takes whole numbers, got {value:g}")
+
+
+def parse_factor(item: str, *, grid: bool = False) -> tuple[FactorRange, int]:
+    """``NAME=LOW:HIGH`` (``LOWx:HIGHx`` relative) or ``NAME=VALUE`` -> (range, 1); with
+    `grid`, ``NAME=LOW:HIGH:N`` -> (range, N points). `ConfigError` naming the bad part."""
+    name, sep, value = item.partition("=")
+    name = name.strip()
+    if not sep or not value:
+        form = "NAME=LOW:HIGH:N" if grid else "NAME=LOW:HIGH or NAME=VALUE"
+        raise ConfigError(f"{item!r} is not {form}; factors: {', '.join(FACTORS)}")
+    if name not in FACTORS:
+        raise unknown("randomisation factor", name, FACTORS)
+    kind = FACTORS[name]
+    parts = value.split(":")
+    points = 1
+    if grid:
+        if len(parts) != 3:
+            raise ConfigError(f"--sweep {item!r} is not NAME=LOW:HIGH:N")
+        try:
+            points = int(parts.pop())
+        except ValueError:
+            raise ConfigError(f"--sweep {item!r}: N must be a whole number") from None
+        if points < 2:
+            raise ConfigError(f"--sweep {item!r}: N must be >= 2, got {points}")
+    elif len(parts) > 2:
+        raise ConfigError(f"{item!r} is not NAME=LOW:HIGH or NAME=VALUE")
+    numbers = [_number(name, p.strip(), item) for p in parts]
+    if len({r for _, r in numbers}) > 1:
+        raise ConfigError(f"{item!r}: write both ends as multiples (0.5x:2x) or neither")
+    relative = numbers[0][1]
+    if relative and not kind.relative:
+        raise ConfigError(f"{item!r}: {name} takes absolute values only ({kind.help})")
+    for v, _ in numbers:
+        _check_value(kind, name, v, relative, item)
+    low, high = numbers[0][0], numbers[-1][0]
+    if low > high:
+        raise ConfigError(f"{item!r}: low {low:g} is above high {high:g}")
+    if grid and low == high:
+        raise ConfigError(f"--sweep {item!r}: LOW and HIGH must differ")
+    if grid and kind.integer and points > high - low + 1:
+        raise ConfigError(f"--sweep {item!r}: {name} has only {int(high - low + 1)} values there")
+    return FactorRange(name, low, high, relative), points
+
+
+def parse_factors(items: Sequence[str]) -> tuple[FactorRange, ...]:
+    """Every ``--randomize`` item, each factor at most once."""
+    ranges = tuple(parse_factor(i)[0] for i in items)
+    names = [r.name for r in ranges]
+    twice = sorted({n for n in names if names.count(n) > 1})
+    if twice:
+        raise ConfigError(f"--randomize names {', '.join(twice)} more than once")
+    return ranges
+
+
+def grid_values(factor: FactorRange, points: int) -> list[float]:
+    """A sweep's grid: `points` evenly spaced values from low to high (whole numbers for an
+    integer factor)."""
+    values = np.linspace(factor.low, factor.high, points)
+    if FACTORS[factor.name].integer:
+        values = np.round(values)
+    return [float(v) for v in values]
+
+
+def available_factors(scene: Scene) -> list[str]:
+    """The factors `scene` can randomise."""
+    targets = scene.randomization_targets()
+    if targets is None:
+        return []
+    return [n for n, k in FACTORS.items() if getattr(targets, k.target)]
+
+
+def _salt(name: str) -> int:
+    return zlib.crc32(name.encode()) & 0x7FFFFFFF
+
+
+def _obs_index(layout: Mapping[str, tuple[int, int]], names: Sequence[str]) -> np.ndarray:
+    return np.concatenate(
+        [np.arange(layout[n][0], layout[n][0] + layout[n][1]) for n in names] or [[]]
+    ).astype(np.int32)
+
+
+class Randomized(Scene):
+    """`scene` with `factors` drawn per seed at reset (see the module docstring).
+
+    Everything else (model, backend, options, scripted policies, videos) is the scene's own.
+    """
+
+    def __init__(self, scene: Scene, factors: Sequence[FactorRange]) -> None:
+        self.inner = scene
+        self.factors = tuple(factors)
+        if not self.factors:
+            raise ConfigError("Randomized needs at least one factor")
+        targets = scene.randomization_targets()
+        can = available_factors(scene)
+        for f in self.factors:
+            if f.name not in can:
+                raise ConfigError(
+                    f"scene {scene.name!r} cannot randomise {f.name!r} ({FACTORS[f.name].help}); "
+                    f"valid: {', '.join(can) or '(none: it runs outside JAX)'}"
+                )
+        assert targets is not None
+        self.targets: RandomizationTargets = targets
+        m = scene.mj_model
+        self._fields = self._field_writers(m, targets)
+        low, high = (np.asarray(b, np.float32) for b in scene.action_bounds())
+        if "action_noise" in self._names and not np.all(np.isfinite(high - low)):
+            raise ConfigError(f"scene {scene.name!r}: action_noise needs finite action bounds")
+        self._action_span = jnp.asarray(high - low)
+        layout = scene.obs_layout
+        flat = isinstance(scene.observation_spec, jax.ShapeDtypeStruct)
+        sensing = {"joint_noise", "object_noise", "depth_noise", "depth_dropout"}
+        if sensing & set(self._names) and not flat:
+            raise ConfigError(f"scene {scene.name!r}: observation noise needs a flat observation")
+        self._joint_idx = _obs_index(layout, targets.joint_obs)
+        self._object_idx = _obs_index(layout, targets.object_obs)
+        names = [n for n, _ in targets.range_obs]
+        self._range_idx = _obs_index(layout, names)
+        self._range_max = np.concatenate(
+            [np.full(layout[n][1], r, np.float32) for n, r in targets.range_obs] or [[]]
+        ).astype(np.float32)
+
+    @property
+    def _names(self) -> list[str]:
+        return [f.name for f in self.factors]
+
+    def _factor(self, name: str) -> FactorRange | None:
+        return next((f for f in self.factors if f.name == name), None)
+
+    # ---- model fields ---------------------------------------------------------------------
+
+    def _field_writers(self, m: mujoco.MjModel, t: RandomizationTargets) -> dict[str, Any]:
+        """Per physics factor: the ids it writes (checked against the model)."""
+        ids: dict[str, Any] = {}
+        if self._factor("friction"):
+            ids["friction"] = np.asarray(t.contact_geoms)
+        if self._factor("mass"):
+            ids["mass"] = np.asarray(t.object_bodies)
+        if self._factor("kp"):
+            act = np.asarray(t.arm_actuators)
+            servo = (
+                (m.actuator_gaintype[act] == mujoco.mjtGain.mjGAIN_FIXED)
+                & (m.actuator_biastype[act] == mujoco.mjtBias.mjBIAS_AFFINE)
+                & np.isclose(m.actuator_biasprm[act, 1], -m.actuator_gainprm[act, 0])
+            )
+            if not servo.all():
+                bad = [m.actuator(int(a)).name or int(a) for a in act[~servo]]
+                raise ConfigError(f"kp needs position servos; actuators {bad} are not")
+            ids["kp"] = act
+        if self._factor("damping") or self._factor("armature"):
+            ids["dofs"] = np.asarray(t.arm_dofs)
+        touched = np.zeros(m.nv, bool)
+        if "mass" in ids:
+            touched |= np.isin(m.dof_bodyid, ids["mass"])
+        if self._factor("armature"):
+            touched[ids["dofs"]] = True
+        simple = np.flatnonzero(touched & (m.body_simple[m.dof_bodyid] != 0))
+        if simple.size:
+            ids["simple_dofs"] = simple
+        return ids
+
+    def _apply_fields(
+        self, fields: dict[str, jax.Array], values: dict[str, jax.Array]
+    ) -> dict[str, jax.Array]:
+        m = self.inner.mj_model
+        base, fields = fields, dict(fields)
+
+        def field(name: str) -> jax.Array:
+            """The value before randomisation: the scene's per-env value, or the model's."""
+            return base.get(name, jnp.asarray(getattr(m, name), jnp.float32))
+
+        def scaled(f: FactorRange, nominal: jax.Array) -> jax.Array:
+            v = values[f.name]
+            return nominal * v if f.relative else jnp.broadcast_to(v, nominal.shape)
+
+        if f := self._factor("friction"):
+            g = self._fields["friction"]
+            fr = field("geom_friction")
+            fields["geom_friction"] = fr.at[g, 0].set(scaled(f, fr[g, 0]))
+        if f := self._factor("mass"):
+            b = self._fields["mass"]
+            mass = field("body_mass")
+            new = scaled(f, mass[b])
+            ratio = new / mass[b]
+            fields["body_mass"] = mass.at[b].set(new)
+            inertia = field("body_inertia")
+            fields["body_inertia"] = inertia.at[b].set(inertia[b] * ratio[:, None])
+        if f := self._factor("kp"):
+            a = self._fields["kp"]
+            gain, bias = field("actuator_gainprm"), field("actuator_biasprm")
+            kp = scaled(f, gain[a, 0])
+            fields["actuator_gainprm"] = gain.at[a, 0].set(kp)
+            fields["actuator_biasprm"] = bias.at[a, 1].set(-kp)
+        for name, model_field in (("damping", "dof_damping"), ("armature", "dof_armature")):
+            if f := self._factor(name):
+                d = self._fields["dofs"]
+                nominal = field(model_field)
+                fields[model_field] = nominal.at[d].set(scaled(f, nominal[d]))
+        simple = self._fields.get("simple_dofs")
+        if simple is not None:
+            # MuJoCo C takes the inertia of a "simple" body's dofs from `dof_M0` (computed at
+            # compile time, armature included), not from its mass: keep it in step.
+            ratio = jnp.ones(m.nbody, jnp.float32)
+            if "mass" in self._fields:
+                b = self._fields["mass"]
+                ratio = ratio.at[b].set(fields["body_mass"][b] / field("body_mass")[b])
+            m0, arm0 = field("dof_M0"), field("dof_armature")
+            arm = fields.get("dof_armature", arm0)
+            r = ratio[m.dof_bodyid[simple]]
+            fields["dof_M0"] = m0.at[simple].set((m0[simple] - arm0[simple]) * r + arm[simple])
+        return fields
+
+    # ---- sampling ---------------------------------------------------------------------------
+
+    def sample(self, key: jax.Array) -> dict[str, jax.Array]:
+        """Each factor's value for the episode whose reset key is `key` (pure JAX, one env)."""
+        out = {}
+        for f in self.factors:
+            u = jax.random.uniform(jax.random.fold_in(key, _salt(f.name)), (), jnp.float32)
+            if FACTORS[f.name].integer:
+                v = jnp.minimum(f.low + jnp.floor(u * (f.high - f.low + 1)), f.high)
+            else:
+                v = f.low + u * (f.high - f.low)
+            out[f.name] = jnp.asarray(f.low if f.fixed else v, jnp.float32)
+        return out
+
+    def _noisy_obs(self, obs: jax.Array, values: dict[str, jax.Array], key: jax.Array) -> jax.Array:
+        """The observation the policy reads: `obs` with this step's sensing noise."""
+        keys = jax.random.split(key, 4)
+        for name, idx, k in (
+            ("joint_noise", self._joint_idx, keys[0]),
+            ("object_noise", self._object_idx, keys[1]),
+        ):
+            if name in values and idx.size:
+                obs = obs.at[idx].add(values[name] * jax.random.normal(k, idx.shape))
+        idx = self._range_idx
+        if idx.size and ("depth_noise" in values or "depth_dropout" in values):
+            top = jnp.asarray(self._range_max)
+            r = obs[idx]
+            hit = r < top
+            if "depth_noise" in values:
+                noisy = r + values["depth_noise"] * jax.random.normal(keys[2], idx.shape)
+                r = jnp.where(hit, jnp.clip(noisy, 0.0, top), r)
+            if "depth_dropout" in values:
+                lost = jax.random.uniform(keys[3], idx.shape) < values["depth_dropout"]
+                r = jnp.where(lost, top, r)
+            obs = obs.at[idx].set(r)
+        return obs
+
+    # ---- the scene contract ---------------------------------------------------------------
+
+    def _inner_view(self, state: State) -> State:
+        """`state` as the wrapped scene knows it: the true observation, its own `info`."""
+        info = dict(state.info)
+        extra = info.pop(INFO_KEY)
+        return state.replace(obs=extra["obs"], info=info)
+
+    def _wrap(self, state: State, extra: dict[str, Any]) -> State:
+        values = extra["values"]
+        key = jax.random.fold_in(extra["key"], extra["t"])
+        extra = {**extra, "obs": state.obs}
+        obs = self._noisy_obs(state.obs, values, jax.random.fold_in(key, 1))
+        return state.replace(obs=obs, info={**state.info, INFO_KEY: extra})
+
+    def _randomize(self, state: State, key: jax.Array) -> State:
+        values = self.sample(key)
+        physics = state.physics.replace(fields=self._apply_fields(state.physics.fields, values))
+        extra: dict[str, Any] = {
+            "values": values,
+            "t": jnp.zeros((), jnp.int32),
+            "key": jax.random.fold_in(key, _salt("noise")),
+        }
+        if self._factor("delay"):
+            assert self.targets.hold is not None
+            hold = self.targets.hold(state)
+            extra["queue"] = jnp.broadcast_to(hold, (MAX_DELAY + 1, *hold.shape))
+        return self._wrap(state.replace(physics=physics), extra)
+
+    def reset(self, key: jax.Array) -> State:
+        return self._randomize(self.inner.reset(key), key)
+
+    def reset_with_seed(self, seed: jax.Array, key: jax.Array) -> State:
+        return self._randomize(self.inner.reset_with_seed(seed, key), key)
+
+    def step(self, state: State, action: jax.Array) -> State:
+        extra = dict(state.info[INFO_KEY])
+        values = extra["values"]
+        key = jax.random.fold_in(extra["key"], extra["t"])
+        if "action_noise" in values:
+            noise = jax.random.normal(jax.random.fold_in(key, 0), action.shape)
+            action = action + values["action_noise"] * self._action_span * noise
+        if "queue" in extra:
+            queue = jnp.concatenate([action[None], extra["queue"][:-1]])
+            extra["queue"] = queue
+            action = queue[values["delay"].astype(jnp.int32)]
+        new = self.inner.step(self._inner_view(state), action)
+        extra["t"] = extra["t"] + 1
+        return self._wrap(new, extra)
+
+    def episode_factors(self, state: State) -> dict[str, jax.Array]:
+        """The scene's own factors, then each randomised factor's value (fixed ones omitted)."""
+        out = dict(self.inner.episode_factors(self._inner_view(state)))
+        values = state.info[INFO_KEY]["values"]
+        out.update({f.label: values[f.name] for f in self.factors if not f.fixed})
+        return out
+
+    def episode_info(self, state: State) -> dict[str, jax.Array]:
+        return self.inner.episode_info(self._inner_view(state))
+
+    def describe_episode(self, info: dict[str, Any]) -> dict[str, Any]:
+        return self.inner.describe_episode(info)
+
+    def frame_record(self, state: State) -> dict[str, jax.Array]:
+        return self.inner.frame_record(self._inner_view(state))
+
+    def pose_frame(
+        self, model: mujoco.MjModel, data: mujoco.MjData, record: Mapping[str, np.ndarray]
+    ) -> None:
+        self.inner.pose_frame(model, data, record)
+
+    def sensor_frames(self, state: State) -> dict[str, jax.Array]:
+        return self.inner.sensor_frames(self._inner_view(state))
+
+    def prepare(self, n_envs: int) -> None:
+        self.inner.prepare(n_envs)
+
+    def close(self) -> None:
+        self.inner.close()
+
+    def randomization_targets(self) -> RandomizationTargets | None:
+        return self.targets
+
+    def cache_parts(self) -> dict[str, Any]:
+        return {**self.inner.cache_parts(), "randomize": [f.text() for f in self.factors]}
+
+    def describe(self) -> dict[str, str]:
+        """The factors as the CLI writes them (for the report's options)."""
+        return {f.name: f.text().partition("=")[2] for f in self.factors}
+
+    # What the wrapped scene is, unchanged.
+    name = property(lambda self: self.inner.name)  # type: ignore[assignment]
+    task = property(lambda self: self.inner.task)  # type: ignore[assignment]
+    instruction = property(lambda self: self.inner.instruction)  # type: ignore[assignment]
+    backend = property(lambda self: self.inner.backend)  # type: ignore[assignment]
+    spec = property(lambda self: self.inner.spec)  # type: ignore[assignment]
+    options = property(lambda self: self.inner.options)  # type: ignore[assignment]
+    robot_name = property(lambda self: self.inner.robot_name)  # type: ignore[assignment]
+    sensor_shapes = property(lambda self: self.inner.sensor_shapes)  # type: ignore[assignment]
+    video_camera = property(lambda self: self.inner.video_camera)  # type: ignore[assignment]
+
+    @property
+    def max_steps(self) -> int:
+        return self.inner.max_steps
+
+    @property
+    def action_size(self) -> int:
+        return self.inner.action_size
+
+    @property
+    def obs_layout(self) -> dict[str, tuple[int, int]]:
+        return self.inner.obs_layout
+
+    @property
+    def obs_shapes(self) -> dict[str, tuple[int, ...]]:
+        return self.inner.obs_shapes
+
+    @property
+    def control_dt(self) -> float:
+        return self.inner.control_dt
+
+    @property
+    def mj_model(self) -> mujoco.MjModel:
+        return self.inner.mj_model
+
+    def action_obs_index(self) -> tuple[int, ...] | None:
+        return self.inner.action_obs_index()
+
+    def action_bounds(self) -> tuple[jax.Array, jax.Array]:
+        return self.inner.action_bounds()
+
+    def __getattr__(self, name: str) -> Any:
+        """The wrapped scene's own methods (its scripted policy, kinematics)."""
+        if name == "inner":  # not yet set: construction failed early
+            raise AttributeError(name)
+        return getattr(self.inner, name)
+
+
+def randomize(scene: Scene, factors: Sequence[FactorRange | str]) -> Scene:
+    """`scene` with `factors` randomised per seed (``NAME=LOW:HIGH`` strings or ranges); the
+    scene itself when there are none, so nominal runs are exactly today's."""
+    ranges = tuple(f if isinstance(f, FactorRange) else parse_factor(f)[0] for f in factors)
+    if not ranges:
+        return scene
+    names = [r.name for r in ranges]
+    twice = sorted({n for n in names if names.count(n) > 1})
+    if twice:
+        raise ConfigError(f"factors {', '.join(twice)} are given more than once")
+    return Randomized(scene, ranges)

@@ -1,0 +1,256 @@
+"""Per-env randomisation and sweeps (`scenes.randomization`, `evaluation.sweep`).
+
+The physics factors are checked against MuJoCo C stepped by hand on a model copy holding the
+env's values, read back from the env's state; the control and sensing factors against the
+nominal scene fed the delayed or noiseless inputs by hand; the sweep against a known-sensitive
+case (the push expert with a long action delay).
+"""
+
+from __future__ import annotations
+
+import copy
+
+import jax
+import jax.numpy as jnp
+import mujoco
+import numpy as np
+import pytest
+
+from openral_mjx.core.errors import ConfigError
+from openral_mjx.evaluation import build_scene
+from openral_mjx.evaluation.sweep import run_sweep
+from openral_mjx.report.sweep import load_sweep, save_sweep
+from openral_mjx.scenes.randomization import (
+    INFO_KEY,
+    FactorRange,
+    Randomized,
+    grid_values,
+    parse_factor,
+    parse_factors,
+    randomize,
+)
+from openral_mjx.stats import holm_adjusted
+
+SEEDS = jnp.array([3, 11, 20])
+FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS
+PHYSICS = ("friction=0.1:1.0", "mass=0.5x:2x", "kp=0.5x:1.5x", "damping=0.5x:2x", "armature=2x:3x")
+
+
+@pytest.fixture(scope="module")
+def push():
+    """tabletop_push on c (one thread: bit-identical to MuJoCo C stepped by hand)."""
+    return build_scene("tabletop_push", backend="c", n_envs=4, threads=1)
+
+
+# ---- parsing -------------------------------------------------------------------------------
+
+
+def test_parse_forms():
+    assert parse_factor("friction=0.3:1.2") == (FactorRange("friction", 0.3, 1.2), 1)
+    assert parse_factor("mass=0.5x:2x") == (FactorRange("mass", 0.5, 2.0, True), 1)
+    assert parse_factor("delay=2")[0].fixed
+    assert parse_factor("delay=0:4:5", grid=True) == (FactorRange("delay", 0, 4), 5)
+    assert grid_values(FactorRange("delay", 0, 3), 3) == [0.0, 2.0, 3.0]
+    assert grid_values(FactorRange("friction", 0.2, 1.2), 6) == pytest.approx(
+        [0.2, 0.4, 0.6, 0.8, 1.0, 1.2]
+    )
+    assert FactorRange("mass", 0.5, 2.0, True).label == "mass_scale"
+
+
+@pytest.mark.parametrize(
+    ("item", "message"),
+    [
+        ("fric=1", "unknown randomisation factor 'fric'; valid: friction, mass"),
+        ("friction", "is not NAME=LOW:HIGH"),
+        ("friction=a:1", "'a' is not a number"),
+        ("friction=2:1", "low 2 is above high 1"),
+        ("friction=-1:1", "friction must be >= 0"),
+        ("mass=0:1", "mass must be > 0"),
+        ("mass=0.5x:2", "write both ends as multiples"),
+        ("delay=1x:2x", "delay takes absolute values only"),
+        ("delay=0.5:2", "delay takes whole numbers"),
+        ("delay=0:40", "delay must be >= 0 and <= 32"),
+        ("depth_dropout=0:1.5", "depth_dropout must be >= 0 and <= 1"),
+    ],
+)
+def test_bad_factor_is_a_config_error(item, message):
+    with pytest.raises(ConfigError, match=message.replace("(", r"\(")):
+        parse_factor(item)
+
+
+def test_bad_sweep_and_repeats():
+    with pytest.raises(ConfigError, match="N must be >= 2"):
+        parse_factor("friction=0.2:1:1", grid=True)
+    with pytest.raises(ConfigError, match="not NAME=LOW:HIGH:N"):
+        parse_factor("friction=0.2:1", grid=True)
+    with pytest.raises(ConfigError, match="more than once"):
+        parse_factors(["delay=0:1", "delay=2"])
+
+
+def test_scene_without_a_target_refuses(push):
+    with pytest.raises(ConfigError, match=r"cannot randomise 'depth_noise'.*valid: friction"):
+        randomize(push, ["depth_noise=0:0.01"])
+
+
+def test_holm_against_closed_form_and_simulation():
+    # Sorted 0.005, 0.01, 0.03, 0.04 times 4, 3, 2, 1, then the running maximum.
+    np.testing.assert_allclose(holm_adjusted([0.01, 0.04, 0.03, 0.005]), [0.03, 0.06, 0.06, 0.02])
+    # Family-wise error under the global null (independent uniform p-values), by simulation:
+    # at most alpha (Holm's bound is exact here: 1 - (1 - alpha/m)^m at the first step).
+    rng = np.random.default_rng(0)
+    p = rng.uniform(size=(20_000, 5))
+    fwer = np.mean([(holm_adjusted(row) <= 0.05).any() for row in p])
+    assert fwer == pytest.approx(1 - (1 - 0.05 / 5) ** 5, abs=0.006)
+    assert fwer <= 0.05 + 0.006
+
+
+# ---- physics factors: per-env model fields against MuJoCo C --------------------------------
+
+
+def _reset(scene, seeds):
+    keys = jax.vmap(lambda s: jax.random.split(jax.random.PRNGKey(s), 2)[0])(seeds)
+    return jax.jit(jax.vmap(scene.reset_with_seed))(seeds, keys)
+
+
+def test_physics_fields_per_env_match_mujoco_c(push):
+    scene = randomize(push, PHYSICS)
+    state = _reset(scene, SEEDS)
+    nominal = _reset(push, SEEDS)
+    # The initial state is the nominal run's: randomised runs pair with it seed by seed.
+    np.testing.assert_array_equal(state.physics.quantities.qpos, nominal.physics.quantities.qpos)
+    fields = {k: np.asarray(v) for k, v in state.physics.fields.items()}
+    values = state.info[INFO_KEY]["values"]
+    m = push.mj_model
+    cube, table = m.geom("cube").id, m.geom("table").id
+    np.testing.assert_allclose(fields["geom_friction"][:, cube, 0], values["friction"])
+    np.testing.assert_allclose(fields["geom_friction"][:, table, 0], values["friction"])
+    body = m.body("cube").id
+    np.testing.assert_allclose(
+        fields["body_mass"][:, body], m.body_mass[body] * values["mass"], rtol=1e-6
+    )
+    assert len(set(np.round(np.asarray(values["friction"]), 6))) == len(SEEDS)  # per env
+    # The cube is a simple body: MuJoCo C reads its inertia from dof_M0, as mj_setConst sets it.
+    for i in range(len(SEEDS)):
+        mi = copy.copy(m)
+        for name in ("body_mass", "body_inertia"):
+            getattr(mi, name)[:] = fields[name][i]
+        mujoco.mj_setConst(mi, mujoco.MjData(mi))
+        dofs = np.flatnonzero(m.dof_bodyid == body)
+        np.testing.assert_allclose(fields["dof_M0"][i, dofs], mi.dof_M0[dofs], rtol=1e-5)
+    # Each env's trajectory is MuJoCo C's on a model copy holding that env's fields.
+    rng = np.random.default_rng(1)
+    low, high = (np.asarray(b) for b in push.action_bounds())
+    actions = rng.uniform(low, high, size=(6, len(SEEDS), push.action_size)).astype(np.float32)
+    step = jax.jit(jax.vmap(scene.step))
+    s = state
+    qpos = []
+    for a in actions:
+        s = step(s, jnp.asarray(a))
+        qpos.append(np.asarray(s.physics.quantities.qpos))
+    host = push.backend.host_model
+    for i, seed_state in enumerate(np.asarray(nominal.physics.data)):
+        model = copy.copy(host)
+        for name, value in fields.items():
+            getattr(model, name)[:] = value[i].astype(np.float64)
+        d = mujoco.MjData(model)
+        mujoco.mj_setState(model, d, np.asarray(seed_state).view(np.float64), FULL)
+        for t, a in enumerate(actions):
+            d.ctrl[:] = np.clip(a[i], low, high)
+            mujoco.mj_step(model, d, nstep=push.backend.n_substeps)
+            np.testing.assert_allclose(d.qpos, qpos[t][i], atol=2e-6)
+    # ... and differs from the nominal model's.
+    n = _reset(push, SEEDS)
+    for a in actions:
+        n = jax.jit(jax.vmap(push.step))(n, jnp.asarray(a))
+    assert np.abs(np.asarray(n.physics.quantities.qpos) - qpos[-1]).max() > 1e-4
+
+
+def test_factor_values_depend_on_the_seed_alone(push):
+    scene = randomize(push, [*PHYSICS, "delay=0:4"])
+    a = _reset(scene, SEEDS).info[INFO_KEY]["values"]
+    b = _reset(scene, jnp.array([99, 20, 3, 11])).info[INFO_KEY]["values"]
+    for k in a:
+        np.testing.assert_array_equal(np.asarray(a[k]), np.asarray(b[k])[[2, 3, 1]])
+    # Adding a factor leaves the others' draws alone.
+    c = _reset(randomize(push, ["friction=0.1:1.0"]), SEEDS).info[INFO_KEY]["values"]
+    np.testing.assert_array_equal(np.asarray(c["friction"]), np.asarray(a["friction"]))
+    assert set(np.asarray(a["delay"]).tolist()) <= {0.0, 1.0, 2.0, 3.0, 4.0}
+
+
+# ---- control and sensing factors against the nominal scene fed by hand ----------------------
+
+
+def test_delay_executes_the_action_from_d_steps_before(push):
+    d = 2
+    scene = randomize(push, [f"delay={d}"])
+    hold = scene.targets.hold
+    s = _reset(scene, SEEDS)
+    n = _reset(push, SEEDS)
+    held = jax.vmap(hold)(n)
+    rng = np.random.default_rng(2)
+    low, high = (np.asarray(b) for b in push.action_bounds())
+    actions = jnp.asarray(
+        rng.uniform(low, high, size=(5, len(SEEDS), push.action_size)), jnp.float32
+    )
+    step_r, step_n = jax.jit(jax.vmap(scene.step)), jax.jit(jax.vmap(push.step))
+    for t in range(len(actions)):
+        s = step_r(s, actions[t])
+        n = step_n(n, actions[t - d] if t >= d else held)
+        np.testing.assert_array_equal(s.physics.quantities.qpos, n.physics.quantities.qpos)
+
+
+def test_observation_noise_hits_only_its_slices(push):
+    sigma = 0.02
+    scene = randomize(push, [f"joint_noise={sigma}"])
+    s = _reset(scene, jnp.arange(64))
+    clean = np.asarray(s.info[INFO_KEY]["obs"])
+    noise = np.asarray(s.obs) - clean
+    start, size = push.obs_layout["joint_pos"]
+    joint = noise[:, start : start + size]
+    assert np.std(joint) == pytest.approx(sigma, rel=0.15)
+    rest = np.delete(noise, np.arange(start, start + size), axis=1)
+    np.testing.assert_array_equal(rest, 0.0)
+    # The scene's own logic sees the true state: the physics is the nominal one.
+    nominal = _reset(push, jnp.arange(64))
+    np.testing.assert_array_equal(clean, nominal.obs)
+
+
+def test_depth_noise_and_dropout():
+    scene = build_scene(
+        "tabletop_push",
+        {"obs_depth_cameras": ("front",), "obs_depth_size": (16, 12)},
+        backend="c",
+        n_envs=4,
+        threads=1,
+    )
+    r = randomize(scene, ["depth_noise=0.01", "depth_dropout=0.25"])
+    assert isinstance(r, Randomized)
+    key, top = r.targets.range_obs[0]
+    start, size = scene.obs_layout[key]
+    obs = jnp.zeros(scene.observation_size).at[start : start + size].set(0.5)
+    obs = obs.at[start].set(top)  # a pixel with no return stays one
+    values = {"depth_noise": jnp.float32(0.01), "depth_dropout": jnp.float32(0.25)}
+    out = np.asarray(r._noisy_obs(obs, values, jax.random.PRNGKey(0)))[start : start + size]
+    assert out[0] == top
+    lost = out[1:] == top
+    assert lost.mean() == pytest.approx(0.25, abs=0.1)
+    assert np.std(out[1:][~lost] - 0.5) == pytest.approx(0.01, rel=0.3)
+
+
+# ---- a known-sensitive case, through the sweep ------------------------------------------------
+
+
+def test_sweep_delay_drops_the_push_expert(push, tmp_path):
+    """The push expert steers by the cube's current pose: 12 control steps (0.6 s) of action
+    delay ruin it, on the same 24 seeds that succeed without delay."""
+    report = run_sweep(
+        push, "scripted", "delay=0:12:2", n_envs=24, n_episodes=24, seed=0, batching="chunks"
+    )
+    nominal, delayed = report.points
+    assert nominal.success_rate >= 0.8
+    assert delayed.success_rate <= nominal.success_rate - 0.4
+    (step,) = report.steps
+    assert step.significant and step.p_adjusted == step.p_value < 0.01
+    path = tmp_path / "sweep.json"
+    save_sweep(report, path)
+    assert load_sweep(path) == report

@@ -117,8 +117,8 @@ def test_list(monkeypatch, capsys):
     [
         (
             ["--scene", "nope"],
-            "unknown scene 'nope'; valid: aloha, libero, metaworld, metaworld_mjx, point_reach, "
-            "pusht, robosuite, so101_box, tabletop_push",
+            "unknown scene 'nope'; valid: aloha, libero, maniskill, metaworld, metaworld_mjx, "
+            "point_reach, pusht, robosuite, so101_box, tabletop_push",
         ),
         (["--scene", "so101_box", "--robot", "ur5"], "scene 'so101_box' requires robot 'so101'"),
         (
@@ -227,8 +227,8 @@ def test_process_exit_code_and_no_traceback(tmp_path):
     )
     assert proc.returncode == 2
     assert proc.stderr.strip() == (
-        "error: unknown scene 'nope'; valid: aloha, libero, metaworld, metaworld_mjx, "
-        "point_reach, pusht, robosuite, so101_box, tabletop_push"
+        "error: unknown scene 'nope'; valid: aloha, libero, maniskill, metaworld, "
+        "metaworld_mjx, point_reach, pusht, robosuite, so101_box, tabletop_push"
     )
     assert not (tmp_path / "r").exists()
 

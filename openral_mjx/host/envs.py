@@ -80,11 +80,22 @@ GYM_ENVS = EnvRecipe(
     note="gym-pusht 0.1.8 + gym-aloha 0.1.5 (dm-control 1.0.x, mujoco 3.x, gymnasium 1.x)",
 )
 
+# ManiSkill 3.0.1 (SAPIEN 3.0.3's PhysX on the CPU, state observations, no renderer) needs
+# torch; pinned to lerobot-libero's torch 2.10 so that uv hard-links the same wheels from its
+# cache instead of fetching another CUDA build (~100 s from an empty cache, ~5 s from uv's).
+# Its robot and table assets ship in the mani-skill wheel: nothing is downloaded at run time.
+MANISKILL = EnvRecipe(
+    python="3.11",
+    steps=(("mani-skill==3.0.1", "sapien==3.0.3", "torch==2.10.*"),),
+    note="ManiSkill 3.0.1 (SAPIEN 3.0.3, PhysX on the CPU), torch 2.10",
+)
+
 RECIPES: dict[str, EnvRecipe | None] = {
     "core": None,
     "lerobot-libero": LEROBOT_LIBERO,
     "metaworld": METAWORLD,
     "gym-envs": GYM_ENVS,
+    "maniskill": MANISKILL,
 }
 READY = "openral_mjx_env.json"
 

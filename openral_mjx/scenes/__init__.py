@@ -15,6 +15,7 @@ from openral_mjx.scenes.aloha import AlohaOptions, aloha
 from openral_mjx.scenes.aloha import suite_tasks as aloha_suite_tasks
 from openral_mjx.scenes.base import Scene, State
 from openral_mjx.scenes.libero import LiberoOptions, libero, suite_tasks
+from openral_mjx.scenes.maniskill import ManiSkillOptions, maniskill
 from openral_mjx.scenes.metaworld import MetaWorldOptions, metaworld
 from openral_mjx.scenes.metaworld import suite_tasks as metaworld_suite_tasks
 from openral_mjx.scenes.metaworld_mjx import MetaWorldMjx, MetaWorldMjxOptions
@@ -69,6 +70,7 @@ SCENES.register("pusht")(SceneEntry(PushTOptions, pusht, "pusht_agent", backends
 SCENES.register("aloha")(
     SceneEntry(AlohaOptions, aloha, "aloha", backends=("host",), suites=aloha_suite_tasks)
 )
+SCENES.register("maniskill")(SceneEntry(ManiSkillOptions, maniskill, "panda", backends=("host",)))
 
 
 def scene_suite(name: str, suite: str) -> list[str]:

@@ -40,6 +40,14 @@ case ${1:?stage} in
           --batching chunks --randomize $R
       done
     done ;;
+  rand-mirror)  # issue 22: the MetaWorld mirror randomised on the GPU, its expert, same seeds
+    R="mass=0.5x:2x friction=0.3:1.0 delay=0:2 object_noise=0:0.005"
+    for t in ${TASKS:-push-v3}; do
+      ev mw_${t}_nominal --scene metaworld_mjx --task $t --policy metaworld-expert \
+        --backend ${BACKEND:-warp} --n-envs ${N:-256} --batching chunks
+      ev mw_${t}_random --scene metaworld_mjx --task $t --policy metaworld-expert \
+        --backend ${BACKEND:-warp} --n-envs ${N:-256} --batching chunks --randomize $R
+    done ;;
   rand-sweep)  # issue 22: a robustness curve on the GPU, the same 4,096 seeds at each value
     ev push_sweep_${FACTOR:-friction} --backend ${BACKEND:-warp} --n-envs 4096 \
       --sweep ${SWEEP:-friction=0.02:0.62:7} ;;

@@ -65,7 +65,7 @@ class EvalArgs:
     task: str | None = None
     """Task of a multi-task scene (libero: SUITE/INDEX, e.g. libero_spatial/0; robosuite: Lift;
     metaworld: reach-v3, push-v3, ...; pusht: PushT-v0; aloha: AlohaInsertion-v0,
-    AlohaTransferCube-v0)."""
+    AlohaTransferCube-v0; maniskill: PickCube-v1, PushCube-v1, StackCube-v1)."""
     suite: str | None = None
     """Evaluate every task of a suite (libero: libero_spatial, libero_object, libero_goal,
     libero_10, libero_90; metaworld: mt10, mt50, ml45-train, ml45-test; aloha: all); reports

@@ -110,10 +110,24 @@ PER_ENV_FIELDS = frozenset(
         "dof_damping",
         "dof_armature",
         "dof_M0",
+        "cam_pos",
+        "cam_quat",
         "actuator_gainprm",
         "actuator_biasprm",
     }
 )
+
+
+def camera_local(
+    fields: dict[str, jax.Array] | None, cam: int, model: mujoco.MjModel
+) -> tuple[jax.Array, jax.Array] | None:
+    """Camera `cam`'s pose in its body's frame from an env's `cam_pos`/`cam_quat` fields
+    (the model's value for a missing one); None when the env has neither."""
+    if not fields or not ({"cam_pos", "cam_quat"} & set(fields)):
+        return None
+    pos = fields["cam_pos"][cam] if "cam_pos" in fields else jnp.asarray(model.cam_pos[cam])
+    quat = fields["cam_quat"][cam] if "cam_quat" in fields else jnp.asarray(model.cam_quat[cam])
+    return pos.astype(jnp.float32), quat.astype(jnp.float32)
 
 
 def check_fields(fields: dict[str, Any]) -> None:
@@ -189,23 +203,29 @@ class PhysicsBackend(abc.ABC):
         """Moving bodies whose poses the ray-cast sensors read."""
         return tuple(sorted({b for s in self.ray_sensors.values() for b in s.bodies}))
 
-    def read_sensors(self, xpos: jax.Array, xquat: jax.Array) -> dict[str, jax.Array]:
-        """Ray-cast sensor readings of one env from body poses indexed by body id."""
+    def read_sensors(
+        self, xpos: jax.Array, xquat: jax.Array, fields: dict[str, jax.Array] | None = None
+    ) -> dict[str, jax.Array]:
+        """Ray-cast sensor readings of one env from body poses indexed by body id; a depth
+        camera sits where this env's `cam_pos`/`cam_quat` fields put it, if it has them."""
         out = {}
         for key, sensor in self.ray_sensors.items():
             if isinstance(sensor, raycast.Laser):
                 out[key] = raycast.laser_scan(sensor, xpos, xquat)
             else:
-                out[key] = raycast.depth_image(sensor, xpos, xquat)[0]
+                local = camera_local(fields, sensor.cam_id, self.mj_model)
+                out[key] = raycast.depth_image(sensor, xpos, xquat, local)[0]
         return out
 
-    def read_sensors_of(self, pos: jax.Array, quat: jax.Array) -> dict[str, jax.Array]:
+    def read_sensors_of(
+        self, pos: jax.Array, quat: jax.Array, fields: dict[str, jax.Array] | None = None
+    ) -> dict[str, jax.Array]:
         """`read_sensors` from the poses of `sensor_bodies` alone (others at rest)."""
         ids = np.asarray(self.sensor_bodies, np.int64)
         xpos, xquat = jnp.asarray(self._rest_xpos), jnp.asarray(self._rest_xquat)
         if ids.size:
             xpos, xquat = xpos.at[ids].set(pos), xquat.at[ids].set(quat)
-        return self.read_sensors(xpos, xquat)
+        return self.read_sensors(xpos, xquat, fields)
 
     def _setup(self, spec: mujoco.MjSpec) -> None:  # noqa: B027 - optional hook
         """Backend-specific construction, after the common fields above are set."""

@@ -296,7 +296,7 @@ class CBackend(PhysicsBackend):
             geom_pos=gpos,
             geom_quat=gquat,
             ok=ok,
-            sensors=self.read_sensors_of(rpos, rquat),
+            sensors=self.read_sensors_of(rpos, rquat, fields),
         )
         return PhysicsState(data=bits, quantities=q, fields=fields)
 

@@ -52,9 +52,11 @@ class MjxBackend(PhysicsBackend):
         """False where this env's physics can no longer be trusted."""
         return all_finite(d.qpos, d.qvel)
 
-    def _readout(self, d: mjx.Data) -> tuple[mjx.Data, Quantities]:
+    def _readout(
+        self, d: mjx.Data, fields: dict[str, jax.Array] | None = None
+    ) -> tuple[mjx.Data, Quantities]:
         """The quantities of `d` (and `d` itself: a backend that renders threads its
-        execution token through the data)."""
+        execution token through the data); `fields`: this env's model fields."""
         q = Quantities(
             qpos=d.qpos,
             qvel=d.qvel,
@@ -64,7 +66,7 @@ class MjxBackend(PhysicsBackend):
             geom_pos=d.geom_xpos[self._geom_ids],
             geom_quat=mat_to_quat(d.geom_xmat[self._geom_ids]),
             ok=self._data_ok(d),
-            sensors=self.read_sensors(d.xpos, d.xquat),
+            sensors=self.read_sensors(d.xpos, d.xquat, fields),
         )
         return d, q
 
@@ -83,11 +85,14 @@ class MjxBackend(PhysicsBackend):
         # the same as after `mjx.forward`, which would double the traced physics and add
         # seconds to every compile.
         d = self._make_data().replace(qpos=qpos, qvel=qvel)
-        d, q = self._readout(self._kinematics(self.model(fields), d))
+        d, q = self._readout(self._kinematics(self.model(fields), d, fields), fields)
         return PhysicsState(data=d, quantities=q, fields=fields)
 
-    def _kinematics(self, mx: mjx.Model, d: mjx.Data) -> mjx.Data:
-        """Poses from joint positions (what `init` reports before the first step)."""
+    def _kinematics(
+        self, mx: mjx.Model, d: mjx.Data, fields: dict[str, jax.Array] | None = None
+    ) -> mjx.Data:
+        """Poses from joint positions (what `init` reports before the first step); `fields`:
+        this env's model fields (already in `mx`, for what reads them beside it)."""
         return mjx.kinematics(mx, d)
 
     def step(
@@ -109,7 +114,7 @@ class MjxBackend(PhysicsBackend):
             d = d.replace(mocap_pos=mocap[0], mocap_quat=mocap[1])
         mx = self.model(state.fields)
         d = jax.lax.fori_loop(0, self.n_substeps, lambda _, x: mjx.step(mx, x), d)
-        d, q = self._readout(d)
+        d, q = self._readout(d, state.fields)
         return PhysicsState(
             data=d, quantities=q.replace(ok=q.ok & state.quantities.ok), fields=state.fields
         )

@@ -98,11 +98,13 @@ class WarpBackend(MjxBackend):
             device=self.home_device(),
         )
 
-    def _kinematics(self, mx: mjx.Model, d: mjx.Data) -> mjx.Data:
-        d = super()._kinematics(mx, d)
+    def _kinematics(
+        self, mx: mjx.Model, d: mjx.Data, fields: dict[str, jax.Array] | None = None
+    ) -> mjx.Data:
+        d = super()._kinematics(mx, d, fields)
         if self._static_geoms.size and mx is not self.mx:
             d = self._place_static_geoms(mx, d)
-        return d if self.cameras is None else self.cameras.place_cameras(d)
+        return d if self.cameras is None else self.cameras.place_cameras(d, fields)
 
     def _place_static_geoms(self, mx: mjx.Model, d: mjx.Data) -> mjx.Data:
         """World poses of the geoms of bodies welded to the world, from this env's body poses.
@@ -122,8 +124,10 @@ class WarpBackend(MjxBackend):
             geom_xmat=d.geom_xmat.at[g].set(jnp.einsum("gij,gjk->gik", xmat, local)),
         )
 
-    def _readout(self, d: mjx.Data) -> tuple[mjx.Data, Quantities]:
-        d, q = super()._readout(d)
+    def _readout(
+        self, d: mjx.Data, fields: dict[str, jax.Array] | None = None
+    ) -> tuple[mjx.Data, Quantities]:
+        d, q = super()._readout(d, fields)
         if self.cameras is None:
             return d, q
         images, d = self.cameras.render(d)

@@ -20,10 +20,11 @@ import jax
 import jax.numpy as jnp
 import mujoco
 
+from openral_mjx.physics.base import camera_local
 from openral_mjx.physics.cameras import RgbSpec
 from openral_mjx.physics.mjx_backend import mjx
 from openral_mjx.raycast import DepthSpec
-from openral_mjx.raycast.mount import Mount, camera
+from openral_mjx.raycast.mount import Mount, camera, moved
 
 
 @dataclasses.dataclass(frozen=True)
@@ -102,11 +103,19 @@ class WarpCameras:
             )
         return self._contexts[nworld]
 
-    def place_cameras(self, d: mjx.Data) -> mjx.Data:
+    def place_cameras(self, d: mjx.Data, fields: dict[str, jax.Array] | None = None) -> mjx.Data:
         """`d` with the rendered cameras' poses computed from its body poses (what MuJoCo's
-        `mj_camlight` does for fixed cameras; kinematics alone leaves them unset)."""
+        `mj_camlight` does for fixed cameras; kinematics alone leaves them unset), where this
+        env's `cam_pos`/`cam_quat` fields put them."""
         ids = jnp.asarray(list(self._mounts), jnp.int32)
-        poses = [m.pose(d.xpos, d.xquat) for m in self._mounts.values()]
+        poses = []
+        for cam, mount in self._mounts.items():
+            pos, rot = mount.pose(d.xpos, d.xquat)
+            local = camera_local(fields, cam, self.mj_model)
+            if local is not None:
+                nominal = (self.mj_model.cam_pos[cam], self.mj_model.cam_quat[cam])
+                pos, rot = moved(pos, rot, nominal, local)
+            poses.append((pos, rot))
         cam_xpos = d.cam_xpos.at[ids].set(jnp.stack([p for p, _ in poses]))
         cam_xmat = d.cam_xmat.at[ids].set(jnp.stack([r for _, r in poses]))
         return d.replace(cam_xpos=cam_xpos, cam_xmat=cam_xmat)

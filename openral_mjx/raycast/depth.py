@@ -26,6 +26,11 @@ import numpy as np
 from openral_mjx.core.options import check
 from openral_mjx.raycast import mount as mounts
 from openral_mjx.raycast.geoms import VISIBLE_GROUPS, GeomSet, body_ids, static_bounds, subtree
+from openral_mjx.raycast.mount import JITTER_POS_M, JITTER_ROT_RAD, CameraLocal, moved
+
+# View-culling margin on the image plane's slopes for a camera turned by JITTER_ROT_RAD: a
+# turn moves a ray's slope by up to angle * (1 + slope^2), and slopes here reach about 1.
+_SLOPE_MARGIN = 2.5 * JITTER_ROT_RAD
 
 Intrinsics = tuple[float, float, float, float]  # fx, fy, cx, cy in pixels
 
@@ -109,6 +114,7 @@ class DepthCamera:
         what = f"depth camera {spec.key!r}"
         self.spec = spec
         self.cam_id, self.mount = mounts.camera(model, spec.camera, what)
+        self.local = (model.cam_pos[self.cam_id].copy(), model.cam_quat[self.cam_id].copy())
         res = model.cam_resolution[self.cam_id]
         self.width = int(spec.width or res[0])
         self.height = int(spec.height or res[1])
@@ -140,10 +146,13 @@ class DepthCamera:
         """A predicate: whether a geom's bounding sphere meets the (static) viewing frustum
         spanned by the cast rays, within range."""
         centre, radius = static_bounds(model)
+        # Widened so that a camera moved by at most JITTER_POS_M and turned by at most
+        # JITTER_ROT_RAD (a randomised camera) still sees every geom it can hit.
+        radius = radius + JITTER_POS_M
         # Geom centres in the optical frame.
         rot = self.mount.rot.astype(np.float64) * np.array([1.0, -1.0, -1.0])
         local = (centre - self.mount.pos) @ rot
-        lo, hi = grid.min(axis=0), grid.max(axis=0)
+        lo, hi = grid.min(axis=0) - _SLOPE_MARGIN, grid.max(axis=0) + _SLOPE_MARGIN
         normals = [  # inward normals of the four side planes through the camera centre
             np.array([1.0, 0.0, -lo[0]]),
             np.array([-1.0, 0.0, hi[0]]),
@@ -164,6 +173,16 @@ class DepthCamera:
 
         return visible
 
+    def pose(
+        self, xpos: jax.Array, xquat: jax.Array, local: CameraLocal | None = None
+    ) -> tuple[jax.Array, jax.Array]:
+        """The camera's world position and rotation; with `local` (its `cam_pos`, `cam_quat`
+        in this env), moved by the difference from the model's own, in its own frame."""
+        pos, rot = self.mount.pose(xpos, xquat)
+        if local is None:
+            return pos, rot
+        return moved(pos, rot, self.local, local)
+
     @property
     def bodies(self) -> tuple[int, ...]:
         """Moving bodies whose poses the image reads (ids into `xpos`/`xquat`)."""
@@ -171,9 +190,11 @@ class DepthCamera:
         return tuple(sorted(set(self.geoms.bodies) | set(extra)))
 
 
-def _cast(camera: DepthCamera, xpos: jax.Array, xquat: jax.Array) -> tuple[jax.Array, ...]:
+def _cast(
+    camera: DepthCamera, xpos: jax.Array, xquat: jax.Array, local: CameraLocal | None = None
+) -> tuple[jax.Array, ...]:
     """Per pixel (flat): distance along the ray, depth along the axis, validity."""
-    pos, rot = camera.mount.pose(xpos, xquat)
+    pos, rot = camera.pose(xpos, xquat, local)
     dist = camera.geoms.cast(xpos, xquat, pos, rot, camera.dirs)
     depth = dist * jnp.asarray(camera.optical_dirs[:, 2])
     spec = camera.spec
@@ -182,11 +203,13 @@ def _cast(camera: DepthCamera, xpos: jax.Array, xquat: jax.Array) -> tuple[jax.A
 
 
 def depth_image(
-    camera: DepthCamera, xpos: jax.Array, xquat: jax.Array
+    camera: DepthCamera, xpos: jax.Array, xquat: jax.Array, local: CameraLocal | None = None
 ) -> tuple[jax.Array, jax.Array]:
     """Depth (H, W) float32 in metres along the optical axis (`max_range_m` where invalid) and
-    the validity mask (H, W) bool. Body poses as in `laser_scan`; one env, `vmap` for a batch."""
-    _, depth, valid = _cast(camera, xpos, xquat)
+    the validity mask (H, W) bool. Body poses as in `laser_scan`; one env, `vmap` for a batch.
+    `local`: this env's camera pose in its body's frame (`cam_pos`, `cam_quat`), where it
+    differs from the model's (a randomised camera)."""
+    _, depth, valid = _cast(camera, xpos, xquat, local)
     depth = jnp.where(valid, depth, jnp.float32(camera.spec.max_range_m))
     return depth.reshape(camera.shape), valid.reshape(camera.shape)
 

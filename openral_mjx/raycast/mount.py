@@ -39,6 +39,31 @@ class Mount:
         )
 
 
+# A camera's pose in its body's frame (MuJoCo's `cam_pos` (3,), `cam_quat` (4,) w-x-y-z).
+CameraLocal = tuple[jax.Array, jax.Array]
+# How far a randomised camera may move from its model pose: the ray caster's view culling of
+# static geoms keeps this much margin.
+JITTER_POS_M = 0.02
+JITTER_ROT_RAD = 0.05
+
+
+def moved(
+    pos: jax.Array, rot: jax.Array, nominal: tuple[np.ndarray, np.ndarray], local: CameraLocal
+) -> tuple[jax.Array, jax.Array]:
+    """A frame's world pose (`pos`, `rot`) with its body-frame pose changed from `nominal` to
+    `local`: the same change, expressed in the frame itself, applied to the world pose (so it
+    holds for frames on static and moving bodies alike)."""
+    p0, q0 = nominal
+    r0 = np.zeros(9)
+    mujoco.mju_quat2Mat(r0, np.asarray(q0, np.float64))
+    r0t = jnp.asarray(r0.reshape(3, 3).T, jnp.float32)
+    p1, q1 = local
+    q1 = q1 / jnp.linalg.norm(q1)
+    delta_p = mat_vec(r0t, p1 - jnp.asarray(p0, jnp.float32))
+    delta_r = mat_mat(r0t, quat_to_mat(q1))
+    return pos + mat_vec(rot, delta_p), mat_mat(rot, delta_r)
+
+
 def _mount(model, data, body: int, pos, quat, world_pos, world_mat) -> Mount:
     root = int(model.body_rootid[body])
     if is_static(model, body):

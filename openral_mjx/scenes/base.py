@@ -58,6 +58,8 @@ class RandomizationTargets:
             max range) (`depth_noise`, `depth_dropout`).
         hold: the action that holds the robot where a state has it, the command a delayed
             robot executes before the first one arrives (`delay`).
+        cameras: ids of the cameras whose depth or RGB images the observation holds
+            (`camera_pos`, `camera_rot`).
     """
 
     object_bodies: tuple[int, ...] = ()
@@ -68,6 +70,7 @@ class RandomizationTargets:
     object_obs: tuple[str, ...] = ()
     range_obs: tuple[tuple[str, float], ...] = ()
     hold: Callable[[State], jax.Array] | None = None
+    cameras: tuple[int, ...] = ()
 
 
 class Scene(abc.ABC):

@@ -12,7 +12,9 @@ Physics factors become per-env model fields (`PhysicsState.fields`: a batched `m
 `mjx`/`warp`, per-env model copies on `c`). A range written ``LOWx:HIGHx`` multiplies the
 model's own values (recorded as ``NAME_scale``); a plain range sets them. Control factors act
 on the policy's action, sensing factors on the observation the policy reads; the scene's own
-logic (success, frame stacking) sees the true state.
+logic (success, frame stacking) sees the true state. Camera factors move the observed cameras
+through their per-env `cam_pos`/`cam_quat` (ray cast on every backend, rendered on `warp`);
+the reset's images are drawn again from the moved cameras.
 
 MuJoCo C takes the inertia of a "simple" body (a free object, a lone slider) from `dof_M0`,
 which `mj_setConst` derives from masses and armatures at compile time, so a mass or armature
@@ -34,6 +36,7 @@ import mujoco
 import numpy as np
 
 from openral_mjx.core.errors import ConfigError, unknown
+from openral_mjx.raycast.mount import JITTER_POS_M, JITTER_ROT_RAD
 from openral_mjx.scenes.base import RandomizationTargets, Scene, State
 
 INFO_KEY = "randomization"
@@ -94,7 +97,22 @@ FACTORS: dict[str, FactorKind] = {
         False,
         maximum=1.0,
     ),
+    "camera_pos": FactorKind(
+        "distance each observed camera moves from its pose, in a random direction",
+        "cameras",
+        False,
+        maximum=JITTER_POS_M,
+        unit="m",
+    ),
+    "camera_rot": FactorKind(
+        "angle each observed camera turns about a random axis",
+        "cameras",
+        False,
+        maximum=JITTER_ROT_RAD,
+        unit="rad",
+    ),
 }
+CAMERA_FACTORS = ("camera_pos", "camera_rot")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -214,6 +232,21 @@ def available_factors(scene: Scene) -> list[str]:
     return [n for n, k in FACTORS.items() if getattr(targets, k.target)]
 
 
+def _quat_mul(a: jax.Array, b: jax.Array) -> jax.Array:
+    """Hamilton products a * b of w-x-y-z quaternions (..., 4)."""
+    aw, ax, ay, az = (a[..., i] for i in range(4))
+    bw, bx, by, bz = (b[..., i] for i in range(4))
+    return jnp.stack(
+        [
+            aw * bw - ax * bx - ay * by - az * bz,
+            aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw,
+        ],
+        axis=-1,
+    )
+
+
 def _salt(name: str) -> int:
     return zlib.crc32(name.encode()) & 0x7FFFFFFF
 
@@ -245,6 +278,7 @@ class Randomized(Scene):
                 )
         assert targets is not None
         self.targets: RandomizationTargets = targets
+
         m = scene.mj_model
         self._fields = self._field_writers(m, targets)
         low, high = (np.asarray(b, np.float32) for b in scene.action_bounds())
@@ -340,6 +374,19 @@ class Randomized(Scene):
                 d = self._fields["dofs"]
                 nominal = field(model_field)
                 fields[model_field] = nominal.at[d].set(scaled(f, nominal[d]))
+        cams = np.asarray(self.targets.cameras, np.int64)
+        if (f := self._factor("camera_pos")) and cams.size:
+            pos = field("cam_pos")
+            step = values[f.name] * self._directions(values, "camera_pos", cams.size)
+            fields["cam_pos"] = pos.at[cams].set(pos[cams] + step)
+        if (f := self._factor("camera_rot")) and cams.size:
+            quat = field("cam_quat")
+            axes = self._directions(values, "camera_rot", cams.size)
+            half = 0.5 * values[f.name]
+            turn = jnp.concatenate(
+                [jnp.full((cams.size, 1), jnp.cos(half)), jnp.sin(half) * axes], axis=1
+            )
+            fields["cam_quat"] = quat.at[cams].set(_quat_mul(quat[cams], turn))
         simple = self._fields.get("simple_dofs")
         if simple is not None:
             # MuJoCo C takes the inertia of a "simple" body's dofs from `dof_M0` (computed at
@@ -356,8 +403,14 @@ class Randomized(Scene):
 
     # ---- sampling ---------------------------------------------------------------------------
 
+    def _directions(self, values: dict[str, jax.Array], name: str, n: int) -> jax.Array:
+        """`n` unit vectors, uniform on the sphere, drawn for factor `name` (one per camera)."""
+        v = jax.random.normal(values[f"{name}/key"], (n, 3))
+        return v / jnp.linalg.norm(v, axis=1, keepdims=True)
+
     def sample(self, key: jax.Array) -> dict[str, jax.Array]:
-        """Each factor's value for the episode whose reset key is `key` (pure JAX, one env)."""
+        """Each factor's value for the episode whose reset key is `key` (pure JAX, one env);
+        a camera factor also gets the key of its directions (`NAME/key`)."""
         out = {}
         for f in self.factors:
             u = jax.random.uniform(jax.random.fold_in(key, _salt(f.name)), (), jnp.float32)
@@ -366,6 +419,8 @@ class Randomized(Scene):
             else:
                 v = f.low + u * (f.high - f.low)
             out[f.name] = jnp.asarray(f.low if f.fixed else v, jnp.float32)
+            if f.name in CAMERA_FACTORS:
+                out[f"{f.name}/key"] = jax.random.fold_in(key, _salt(f"{f.name}/direction"))
         return out
 
     def _noisy_obs(self, obs: jax.Array, values: dict[str, jax.Array], key: jax.Array) -> jax.Array:
@@ -409,6 +464,9 @@ class Randomized(Scene):
     def _randomize(self, state: State, key: jax.Array) -> State:
         values = self.sample(key)
         physics = state.physics.replace(fields=self._apply_fields(state.physics.fields, values))
+        if set(CAMERA_FACTORS) & set(values):
+            state = self._recast(state, physics)
+            physics = state.physics
         extra: dict[str, Any] = {
             "values": values,
             "t": jnp.zeros((), jnp.int32),
@@ -419,6 +477,19 @@ class Randomized(Scene):
             hold = self.targets.hold(state)
             extra["queue"] = jnp.broadcast_to(hold, (MAX_DELAY + 1, *hold.shape))
         return self._wrap(state.replace(physics=physics), extra)
+
+    def _recast(self, state: State, physics: Any) -> State:
+        """The reset state seen from this env's cameras: the same joint state initialised
+        with its fields (the scene's reset drew its images from the model's camera poses),
+        the sensor slices of the observation read anew."""
+        q = physics.quantities
+        physics = self.inner.backend.init(q.qpos, q.qvel, physics.fields)
+        obs, layout = state.obs, self.inner.obs_layout
+        for name in self.inner.sensor_shapes:
+            start, size = layout[name]
+            reading = physics.quantities.sensors[name].reshape(-1).astype(obs.dtype)
+            obs = obs.at[start : start + size].set(reading)
+        return state.replace(physics=physics, obs=obs)
 
     def reset(self, key: jax.Array) -> State:
         return self._randomize(self.inner.reset(key), key)

@@ -15,6 +15,7 @@ import math
 
 import jax
 import jax.numpy as jnp
+import mujoco
 
 from openral_mjx.core.options import check
 from openral_mjx.physics import Quantities
@@ -109,3 +110,10 @@ def range_slices(specs: tuple[SensorSpec, ...]) -> tuple[tuple[str, float], ...]
     """The depth cameras' and lasers' keys with their reading of no return (the max range):
     what depth noise and dropout act on (`RandomizationTargets.range_obs`)."""
     return tuple((sensor_key(s), float(s.max_range_m)) for s in specs if not isinstance(s, RgbSpec))
+
+
+def observed_cameras(specs: tuple[SensorSpec, ...], model: mujoco.MjModel) -> tuple[int, ...]:
+    """Ids of the cameras whose depth or RGB images `specs` observe (what `camera_pos` and
+    `camera_rot` move: `RandomizationTargets.cameras`)."""
+    cams = {s.camera for s in specs if isinstance(s, DepthSpec | RgbSpec)}
+    return tuple(sorted(model.camera(c).id for c in cams))

@@ -27,7 +27,11 @@ from openral_mjx.scenes.base import (
     servo_hold,
 )
 from openral_mjx.scenes.composition import yaw_quat
-from openral_mjx.scenes.sensor_obs import range_slices, sensor_shapes
+from openral_mjx.scenes.sensor_obs import (
+    observed_cameras,
+    range_slices,
+    sensor_shapes,
+)
 from openral_mjx.scenes.so101_box import observation
 from openral_mjx.scenes.so101_box import task as logic  # `task` is the scene's task name
 from openral_mjx.scenes.so101_box.model import compose
@@ -74,6 +78,7 @@ class So101Box(Scene):
         self._qpos_home = jnp.asarray(home)
         self._layout = observation.obs_layout(len(self.robot_joint_ids), self.sensor_shapes)
         self._range_slices = range_slices(sensors)
+        self._cameras = observed_cameras(sensors, self.mj_model)
 
     @property
     def obs_layout(self) -> dict[str, tuple[int, int]]:
@@ -129,6 +134,7 @@ class So101Box(Scene):
             joint_obs=("joint_pos",),
             object_obs=("tube_pos", "tube_quat", "block_pos", "block_quat"),
             range_obs=self._range_slices,
+            cameras=self._cameras,
             hold=servo_hold(m, {}),
         )
 

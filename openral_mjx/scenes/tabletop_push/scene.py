@@ -24,7 +24,11 @@ from openral_mjx.policies.base import Policy
 from openral_mjx.policies.push_expert import ForwardKinematics, push_expert
 from openral_mjx.scenes.base import RandomizationTargets, Scene, State, servo_hold
 from openral_mjx.scenes.composition import yaw_quat
-from openral_mjx.scenes.sensor_obs import range_slices, sensor_shapes
+from openral_mjx.scenes.sensor_obs import (
+    observed_cameras,
+    range_slices,
+    sensor_shapes,
+)
 from openral_mjx.scenes.tabletop_push import observation
 from openral_mjx.scenes.tabletop_push import task as logic  # `task` is the scene's task name
 from openral_mjx.scenes.tabletop_push.arm import prepare
@@ -86,6 +90,7 @@ class TabletopPush(Scene):
         )
         self._layout = observation.obs_layout(len(self.robot_joint_ids), self.sensor_shapes)
         self._range_slices = range_slices(sensors)
+        self._cameras = observed_cameras(sensors, self.mj_model)
 
     @property
     def obs_layout(self) -> dict[str, tuple[int, int]]:
@@ -142,6 +147,7 @@ class TabletopPush(Scene):
             joint_obs=("joint_pos",),
             object_obs=("cube_pos", "cube_quat"),
             range_obs=self._range_slices,
+            cameras=self._cameras,
             hold=servo_hold(m, self.arm.held),
         )
 

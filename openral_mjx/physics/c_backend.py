@@ -84,6 +84,7 @@ class CBackend(PhysicsBackend):
         self._pool: rollout.Rollout | None = None
         self._datas: list[mujoco.MjData] = []
         self._env_models: list[mujoco.MjModel] = []
+        self._model_bytes = mujoco.mj_sizeModel(m)  # what one per-env copy takes
         self._written: dict[str, np.ndarray] = {}  # per copy: the field values written into it
         self._lock = threading.Lock()
         _LIVE.add(self)
@@ -191,7 +192,7 @@ class CBackend(PhysicsBackend):
     def _slice(self) -> int:
         """Envs per `rollout` call when each has its own model: as many model copies as
         `COPY_BUDGET` bytes hold, and at least a few per thread."""
-        return max(4 * self.threads, COPY_BUDGET // max(1, mujoco.mj_sizeModel(self._model)))
+        return max(4 * self.threads, COPY_BUDGET // max(1, self._model_bytes))
 
     def _host_init(
         self, names: tuple[str, ...], qpos: np.ndarray, qvel: np.ndarray, *values

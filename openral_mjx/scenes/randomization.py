@@ -205,9 +205,10 @@ def parse_factor(item: str, *, grid: bool = False) -> tuple[FactorRange, int]:
     return FactorRange(name, low, high, relative), points
 
 
-def parse_factors(items: Sequence[str]) -> tuple[FactorRange, ...]:
-    """Every ``--randomize`` item, each factor at most once."""
-    ranges = tuple(parse_factor(i)[0] for i in items)
+def parse_factors(items: Sequence[FactorRange | str]) -> tuple[FactorRange, ...]:
+    """Every ``--randomize`` item (``NAME=LOW:HIGH`` or a parsed range), each factor at most
+    once."""
+    ranges = tuple(i if isinstance(i, FactorRange) else parse_factor(i)[0] for i in items)
     names = [r.name for r in ranges]
     twice = sorted({n for n in names if names.count(n) > 1})
     if twice:
@@ -603,11 +604,5 @@ class Randomized(Scene):
 def randomize(scene: Scene, factors: Sequence[FactorRange | str]) -> Scene:
     """`scene` with `factors` randomised per seed (``NAME=LOW:HIGH`` strings or ranges); the
     scene itself when there are none, so nominal runs are exactly today's."""
-    ranges = tuple(f if isinstance(f, FactorRange) else parse_factor(f)[0] for f in factors)
-    if not ranges:
-        return scene
-    names = [r.name for r in ranges]
-    twice = sorted({n for n in names if names.count(n) > 1})
-    if twice:
-        raise ConfigError(f"factors {', '.join(twice)} are given more than once")
-    return Randomized(scene, ranges)
+    ranges = parse_factors(factors)
+    return Randomized(scene, ranges) if ranges else scene

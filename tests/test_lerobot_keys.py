@@ -3,11 +3,19 @@
 import json
 
 import jax
+import jax.numpy as jnp
 import numpy as np
 import pytest
 
 from openral_mjx.core.errors import ConfigError
-from openral_mjx.policies.lerobot import key_map, lerobot_policy, read_features
+from openral_mjx.evaluation import build_scene
+from openral_mjx.policies.lerobot import (
+    key_map,
+    lerobot_policy,
+    read_features,
+    scene_arrays,
+    split_flat,
+)
 
 SD = jax.ShapeDtypeStruct
 LIBERO_OBS = {
@@ -89,7 +97,7 @@ def test_pusht_and_aloha_keys_as_lerobots_gym_envs_name_them():
 
 def test_explicit_map_and_mismatches():
     features = {"observation.images.front": ("VISUAL", (3, 64, 64))}
-    with pytest.raises(ConfigError, match="has no observation: tried \\['front'\\]"):
+    with pytest.raises(ConfigError, match="has no observation: tried \\['front', 'rgb_front'\\]"):
         key_map(features, LIBERO_OBS)
     assert key_map(features, LIBERO_OBS, {"observation.images.front": "wrist_image"}) == {
         "observation.images.front": "wrist_image"
@@ -119,3 +127,23 @@ def test_policy_directory_checks(tmp_path, push_c):
     assert read_features(tmp_path) == ({"observation.state": ("STATE", (27,))}, 7)
     with pytest.raises(ConfigError, match="outputs 7 action values; scene 'tabletop_push' takes 6"):
         lerobot_policy(push_c, str(tmp_path))
+
+
+def test_sensor_slices_of_a_flat_observation_are_their_own_arrays():
+    """Images in a flat observation reach the policy as images: `split_flat` cuts the vector
+    by the scene's layout (the state first, then each sensor: put back together, it is the
+    observation), and the state features take the state part."""
+    options = {"obs_depth_cameras": ["front"], "obs_depth_size": [8, 6]}
+    scene = build_scene("tabletop_push", options, backend="c")
+    try:
+        arrays = scene_arrays(scene)
+        assert set(arrays) == {"obs", "depth_front"} and arrays["depth_front"].shape == (6, 8)
+        obs = jax.random.normal(jax.random.PRNGKey(0), scene.observation_spec.shape)
+        views = split_flat(scene, obs)
+        assert views["obs"].shape == arrays["obs"].shape
+        rebuilt = jnp.concatenate([views["obs"], views["depth_front"].reshape(-1)])
+        np.testing.assert_array_equal(np.asarray(rebuilt), np.asarray(obs))
+        state = {"observation.state": ("STATE", arrays["obs"].shape)}
+        assert key_map(state, arrays) == {"observation.state": "obs"}
+    finally:
+        scene.close()

@@ -1,8 +1,8 @@
 """`torch:MODULE:FACTORY`: a torch module in the evaluator's process, one callback per step.
 
 References: a JAX policy computing the same copy of the observation (bit-identical episodes on
-`c`), numpy for a linear layer, JAX's own buffer address for the zero-copy hand-off, and the
-chunked runner for continuous batching.
+`c`), numpy for a linear layer, JAX's own buffer address for the zero-copy hand-off (inside
+`jit`), and the chunked runner for continuous batching.
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ torch = pytest.importorskip("torch")
 from openral_mjx import eval as eval_cli  # noqa: E402
 from openral_mjx.core.errors import ConfigError  # noqa: E402
 from openral_mjx.policies import Policy, make_policy  # noqa: E402
-from openral_mjx.policies.torch_policy import to_torch  # noqa: E402
+from openral_mjx.policies.torch_bridge import TorchBridge, bridge_policy  # noqa: E402
 from openral_mjx.runner import run_seeds  # noqa: E402
 
 FILE = Path(__file__).parent / "data" / "torch_policies.py"
@@ -44,11 +44,26 @@ def jax_tail(action_size: int) -> Policy:
     return Policy("jax-tail", init, act)
 
 
-def test_callback_reads_jax_buffers_without_a_copy():
-    x = jnp.arange(12.0, dtype=jnp.float32).reshape(3, 4) + 1
-    t = to_torch(torch, x)
-    assert t.data_ptr() == x.unsafe_buffer_pointer()
-    np.testing.assert_array_equal(t.numpy(), np.asarray(x))
+def test_the_module_reads_jax_buffers_and_writes_actions_back():
+    """The tensor the module gets is JAX's own buffer (same address, no copy), inside `jit`
+    too, and the actions it returns are JAX's result, per env row."""
+    seen = {}
+
+    def run(inputs, steps):
+        seen["ptr"], seen["steps"] = inputs["obs"].data_ptr(), steps.tolist()
+        return inputs["obs"][:, :2] * 2
+
+    bridge = TorchBridge(torch, run, {"obs": (4,)}, 2)
+    policy = bridge_policy("double", bridge, lambda obs: {"obs": obs})
+    obs = jnp.arange(12.0, dtype=jnp.float32).reshape(3, 4) + 1
+    params, pstate = policy.init(jax.random.PRNGKey(0), None)
+    pstate = jax.tree.map(lambda x: jnp.broadcast_to(x, (3, *x.shape)), pstate)
+    act = jax.jit(jax.vmap(policy.act, in_axes=(None, 0, 0, None)))
+    action, after = act(params, pstate, obs, jax.random.PRNGKey(0))
+    assert seen["ptr"] == obs.unsafe_buffer_pointer()
+    assert seen["steps"] == [0, 0, 0]
+    np.testing.assert_array_equal(np.asarray(action), 2 * np.asarray(obs)[:, :2])
+    np.testing.assert_array_equal(np.asarray(after["t"]), [1, 1, 1])
 
 
 def test_torch_tail_equals_the_same_policy_in_jax(push_c):

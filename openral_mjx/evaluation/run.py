@@ -187,9 +187,10 @@ def run_evaluation(
         if pol.instruct is not None:  # this task's (a suite shares one policy over its tasks)
             pol.instruct(scene.instruction)
         steps = scene.max_steps if max_steps is None else max_steps
-        check_batching(batching, scene.backend.name, refill_every, step_rewards)
+        aligned = pol.aligned_episodes
+        check_batching(batching, scene.backend.name, refill_every, step_rewards, aligned)
         batching = resolve_batching(
-            batching, scene.backend.name, n_episodes, n_envs, traces=step_rewards
+            batching, scene.backend.name, n_episodes, n_envs, step_rewards, aligned
         )
         requested = np.arange(seed, seed + n_episodes, dtype=np.int64)
         params, _ = pol.init(jax.random.PRNGKey(seed), scene.observation_spec)

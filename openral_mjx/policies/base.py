@@ -35,3 +35,6 @@ class Policy:
     latency_ms: Callable[[Any], jax.Array] | None = None
     close: Callable[[], None] | None = None  # releases host resources (a policy server)
     instruct: Callable[[str], None] | None = None  # sets the task's instruction (VLA policies)
+    # Every env of a batch must start its episode at the same step (a policy that keeps one
+    # observation history for the whole batch): such a run uses fixed chunks, never refill.
+    aligned_episodes: bool = False

@@ -1,22 +1,30 @@
-"""`lerobot:PATH`: a lerobot policy directory as a JAX policy, through a host callback.
+"""`lerobot:PATH`: a lerobot policy directory as a JAX policy, one batched call per step.
 
-The policy runs batched in a server process of the ``lerobot-libero`` worker environment
-(`openral_mjx.host.lerobot_server`; lerobot needs a torch the evaluator's environment cannot
-hold). `act` is a `jax.pure_callback` that vmap hands the whole batch (`vmap_method=
-"broadcast_all"`): one call per control step sends every env's observation to the server,
-which runs lerobot's pre-processor, `select_action` (replaying the policy's action chunks) and
-post-processor, and returns the actions. The callback's round trip is the step's policy
-latency; the runner accumulates it per episode against the control period.
+Where lerobot imports in the evaluator's own environment (Python 3.12 with lerobot 0.6 and
+CUDA torch beside jax: the `lerobot` extra), the policy runs in process
+(`host.lerobot_server.LerobotRunner` behind `policies.torch_bridge`): the observations are
+JAX's own buffers, read by torch through DLPack with no copy (on a GPU, on XLA's stream), and
+the actions are written back into JAX's output buffer. Elsewhere (lerobot 0.4 pins a torch the
+evaluator's Python 3.11 environment cannot hold) it runs in a server process of the
+``lerobot-libero`` worker environment: `act` is a `jax.pure_callback` that vmap hands the whole
+batch (`vmap_method="broadcast_all"`), and each control step sends every env's observation
+over the worker's pipe. `OPENRAL_MJX_LEROBOT=server` (or `process`) forces one path. Both run
+the same `LerobotRunner`: lerobot's pre-processor, the policy with its action chunks replayed
+per env (an env starting an episode gets a fresh chunk, so continuous batching gives each seed
+its own episode), and the post-processor. The call's time is the step's policy latency; the
+runner accumulates it per episode against the control period.
 
 Observation keys. Each input feature of the policy (``config.json``) takes one observation
 array of the scene, by this rule unless ``PATH/openral_mjx_keys.yaml`` maps ``feature:
-scene_key`` explicitly: ``observation.images.NAME`` takes ``NAME`` (``image2`` also
-``wrist_image``, lerobot's name for LIBERO's wrist camera); ``observation.image`` takes
+scene_key`` explicitly: ``observation.images.NAME`` takes ``NAME`` or ``rgb_NAME`` (our
+scenes' rendered cameras; ``image2`` also ``wrist_image``, lerobot's name for LIBERO's wrist
+camera); ``observation.image`` takes
 ``image`` or ``pixels`` and ``observation.state`` takes ``state`` or ``agent_pos`` (lerobot's
 gym-env names, e.g. its MetaWorld env's); ``observation.environment_state`` takes
 ``environment_state`` or ``object``; in a scene whose observation is one flat vector, both
-state features take that vector. Images are uint8 (H, W, C) in the scene and (C, H, W) in the
-policy's features; shapes must agree.
+state features take that vector, less its sensor slices (`scene_arrays`: each rendered camera
+is its own ``rgb_CAMERA`` image). Images are (H, W, C) in the scene (uint8 from host scenes,
+float in [0, 1] from ours) and (C, H, W) in the policy's features; shapes must agree.
 
 Language. Every batch carries the scene's `instruction` under lerobot's ``task`` key (one
 string per env), as lerobot's own evaluation hands every policy its env's task description:
@@ -26,6 +34,7 @@ between evaluations (a suite's tasks).
 
 from __future__ import annotations
 
+import importlib.util
 import json
 import os
 import time
@@ -42,6 +51,12 @@ from openral_mjx.core.errors import ConfigError
 from openral_mjx.host.envs import ensure_env
 from openral_mjx.host.pool import RemoteError, Worker, WorkerFailure, host_callback
 from openral_mjx.policies.base import Policy
+from openral_mjx.policies.torch_bridge import (
+    TorchBridge,
+    bridge_policy,
+    choose_device,
+    import_torch,
+)
 
 ENV = "lerobot-libero"  # the worker environment that holds lerobot and its torch
 KEYS_FILE = "openral_mjx_keys.yaml"
@@ -64,11 +79,33 @@ def read_features(path: Path) -> tuple[dict[str, tuple[str, tuple[int, ...]]], i
     return inputs, int(np.prod(action))
 
 
-def _scene_arrays(spec: Any) -> dict[str, jax.ShapeDtypeStruct]:
-    """The scene's observation as named arrays (a flat vector is named `obs`)."""
+def scene_arrays(scene: Any) -> dict[str, jax.ShapeDtypeStruct]:
+    """The scene's observation as named arrays. A flat vector is `obs`; where it carries
+    sensor slices (images, a laser: `Scene.sensor_shapes`), `obs` is the rest (joints, task
+    values) and each sensor is its own array, `rgb_CAMERA` (H, W, 3) in [0, 1] and so on."""
+    spec = scene.observation_spec
     if isinstance(spec, Mapping):
         return dict(spec)
-    return {"obs": spec}
+    sensors = dict(getattr(scene, "sensor_shapes", None) or {})
+    if not sensors:
+        return {"obs": spec}
+    sd = jax.ShapeDtypeStruct
+    state = sum(size for k, (_, size) in scene.obs_layout.items() if k not in sensors)
+    return {"obs": sd((state,), spec.dtype)} | {k: sd(v, spec.dtype) for k, v in sensors.items()}
+
+
+def split_flat(scene: Any, obs: jax.Array) -> dict[str, jax.Array]:
+    """One env's flat observation as `scene_arrays` names them (pure JAX, in the episode)."""
+    sensors = dict(getattr(scene, "sensor_shapes", None) or {})
+    if not sensors:
+        return {"obs": obs}
+    layout = scene.obs_layout
+    rest = [obs[a : a + n] for k, (a, n) in layout.items() if k not in sensors]
+    out = {"obs": jnp.concatenate(rest)}
+    for k, shape in sensors.items():
+        a, n = layout[k]
+        out[k] = obs[a : a + n].reshape(shape)
+    return out
 
 
 def key_map(
@@ -89,7 +126,7 @@ def key_map(
             candidates: tuple[str, ...] = (explicit[name],)
         elif name.startswith("observation.images."):
             short = name.removeprefix("observation.images.")
-            candidates = ALIASES.get(short, (short,))
+            candidates = (*ALIASES.get(short, (short,)), f"rgb_{short}")
         elif name == "observation.image":
             candidates = ("image", "pixels")
         elif name == "observation.state":
@@ -124,14 +161,16 @@ class LerobotClient:
         self.path, self.keys, self.action_size = path, keys, action_size
         self.instruction = instruction
         self.worker: Worker | None = None
+        self.described: dict[str, Any] = {}
 
     def instruct(self, text: str) -> None:
         """The instruction sent with every following step (see the module docstring)."""
         self.instruction = text
 
-    def start(self) -> None:
+    def start(self) -> dict[str, Any]:
+        """Starts the server if it is not running; what it says of the policy (`describe`)."""
         if self.worker is not None and self.worker.alive:
-            return
+            return self.described
         python = ensure_env(ENV)
         log = Path(os.environ.get("TMPDIR", "/tmp")) / f"openral_mjx_lerobot_{os.getpid()}.log"
         self.worker = Worker(python, {"HF_HUB_OFFLINE": "1"}, log, name="lerobot policy server")
@@ -145,9 +184,13 @@ class LerobotClient:
                 },
                 INIT_TIMEOUT_S,
             )
+            self.described = self.worker.call(
+                {"op": "call", "method": "describe", "kwargs": {}}, INIT_TIMEOUT_S
+            )
         except (WorkerFailure, RemoteError) as e:
             self.close()
             raise ConfigError(f"lerobot policy {str(self.path)!r} failed to load: {e}") from None
+        return self.described
 
     @host_callback
     def __call__(self, obs: dict[str, Any], t: Any) -> tuple[np.ndarray, np.ndarray]:
@@ -165,11 +208,7 @@ class LerobotClient:
             {
                 "op": "call",
                 "method": "act",
-                "kwargs": {
-                    "obs": inputs,
-                    "reset": bool((t == 0).all()),
-                    "task": self.instruction,
-                },
+                "kwargs": {"obs": inputs, "steps": t.tolist(), "task": self.instruction},
             },
             STEP_TIMEOUT_S,
         )
@@ -202,10 +241,12 @@ def lerobot_policy(scene: Any, arg: str | None) -> Policy:
         explicit = yaml.safe_load((path / KEYS_FILE).read_text()) or {}
         if not isinstance(explicit, dict):
             raise ConfigError(f"{path / KEYS_FILE}: expected a mapping feature: scene_key")
-    observation = _scene_arrays(scene.observation_spec)
+    observation = scene_arrays(scene)
     keys = key_map(features, observation, explicit)
+    if in_process():
+        return _in_process(scene, arg, path, keys, action_size)
     client = LerobotClient(path, keys, action_size, scene.instruction)
-    client.start()
+    described = client.start()
     flat = not isinstance(scene.observation_spec, Mapping)
     sd = jax.ShapeDtypeStruct
 
@@ -215,7 +256,7 @@ def lerobot_policy(scene: Any, arg: str | None) -> Policy:
 
     def act(params, pstate, obs, key):
         del params, key
-        arrays = {"obs": obs} if flat else obs
+        arrays = split_flat(scene, obs) if flat else obs
         needed = {k: arrays[k] for k in set(keys.values())}
         action, ms = jax.pure_callback(
             client,
@@ -233,4 +274,61 @@ def lerobot_policy(scene: Any, arg: str | None) -> Policy:
         latency_ms=lambda s: s["ms"],
         close=client.close,
         instruct=client.instruct,
+        aligned_episodes=not described.get("per_env", False),
+    )
+
+
+def in_process() -> bool:
+    """Whether `lerobot:` runs in this process: `OPENRAL_MJX_LEROBOT` (`process` / `server`)
+    if set, else where lerobot is installed here."""
+    chosen = os.environ.get("OPENRAL_MJX_LEROBOT", "").strip().lower()
+    if chosen not in ("", "process", "server"):
+        raise ConfigError(
+            f"OPENRAL_MJX_LEROBOT={chosen!r} is not a lerobot path; valid: process, server"
+        )
+    if chosen:
+        return chosen == "process"
+    return importlib.util.find_spec("lerobot") is not None
+
+
+class _FeatureRun:
+    """The bridge's step function: scene observations renamed to the policy's features."""
+
+    def __init__(self, runner: Any, keys: dict[str, str], instruction: str) -> None:
+        self.runner, self.keys, self.instruction = runner, keys, instruction
+
+    def instruct(self, text: str) -> None:
+        self.instruction = text
+
+    def __call__(self, inputs: dict[str, Any], steps: Any) -> Any:
+        obs = {feature: inputs[key] for feature, key in self.keys.items()}
+        return self.runner(obs, steps, self.instruction)
+
+
+def _in_process(scene: Any, arg: str, path: Path, keys: dict[str, str], action_size: int) -> Policy:
+    """`lerobot:PATH` run by `LerobotRunner` in this process, through the torch bridge."""
+    torch = import_torch()
+    try:
+        from openral_mjx.host.lerobot_server import LerobotRunner
+
+        runner = LerobotRunner(str(path), choose_device(torch))
+    except ImportError as e:
+        raise ConfigError(
+            f"lerobot policy {arg!r}: lerobot does not import here ({e}); set "
+            "OPENRAL_MJX_LEROBOT=server to run it in the lerobot worker environment"
+        ) from None
+    except (OSError, ValueError, KeyError, TypeError) as e:
+        raise ConfigError(f"lerobot policy {arg!r} failed to load: {e}") from None
+    observation = scene_arrays(scene)
+    needed = sorted(set(keys.values()))
+    shapes = {k: tuple(observation[k].shape) for k in needed}
+    run = _FeatureRun(runner, keys, scene.instruction)
+    bridge = TorchBridge(torch, run, shapes, action_size)
+    flat = not isinstance(scene.observation_spec, Mapping)
+    return bridge_policy(
+        f"lerobot:{arg}",
+        bridge,
+        (lambda obs: split_flat(scene, obs)) if flat else (lambda obs: obs),
+        instruct=run.instruct,
+        aligned_episodes=not runner.per_env,
     )

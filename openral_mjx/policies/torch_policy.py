@@ -16,12 +16,10 @@ A module with a `reset(envs)` method is told which envs (a 1-D int64 tensor of b
 start an episode before each step they do, for policies that keep per-env state (action
 chunks).
 
-Each control step is one `jax.pure_callback` for the whole batch (`vmap_method=
-"broadcast_all"`), as for `lerobot:`, but without a process in between: the callback's arrays
-become torch tensors by DLPack (no copy on the CPU: the module reads JAX's buffers), move to
-the module's device (a copy where torch runs on a GPU: JAX hands host callbacks host arrays),
-and the actions come back as float32 without a copy on the CPU. The module runs under
-`torch.inference_mode`. The callback's duration is the step's policy latency.
+Each control step is one `buffer_callback` for the whole batch (`policies.torch_bridge`):
+the module reads JAX's own buffers through DLPack and its actions are written into JAX's
+output buffer, with no copy and, on a GPU, no trip through the host (torch runs on XLA's
+stream). The module runs under `torch.inference_mode`.
 
 Device: `OPENRAL_MJX_TORCH_DEVICE` if set, else CUDA where torch sees a GPU and JAX runs on
 one, else the CPU. Shapes are checked with a two-env dry run when the policy is built.
@@ -32,33 +30,25 @@ from __future__ import annotations
 import importlib
 import importlib.util
 import inspect
-import os
 import sys
-import time
 from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
-import jax
-import jax.numpy as jnp
 import numpy as np
 
 from openral_mjx.core.errors import ConfigError
-from openral_mjx.host.pool import host_callback
 from openral_mjx.policies.base import Policy
+from openral_mjx.policies.torch_bridge import (
+    TorchBridge,
+    bridge_policy,
+    choose_device,
+    dry_run,
+    import_torch,
+)
 
 FACTORY_KWARGS = ("observation_spec", "action_size", "device", "instruction", "task")
 LANGUAGE_KWARGS = ("task", "instruction")  # the module's per-step language parameter
-
-
-def _import_torch() -> Any:
-    try:
-        import torch
-    except ImportError:
-        raise ConfigError(
-            "policy 'torch' needs PyTorch in this environment: pip install 'openral_mjx[torch]'"
-        ) from None
-    return torch
 
 
 def load_factory(spec: str) -> Callable[..., Any]:
@@ -97,26 +87,6 @@ def load_factory(spec: str) -> Callable[..., Any]:
     return factory
 
 
-def choose_device(torch: Any) -> str:
-    """`OPENRAL_MJX_TORCH_DEVICE`, else "cuda" where torch and JAX both run on a GPU, else
-    "cpu"."""
-    chosen = os.environ.get("OPENRAL_MJX_TORCH_DEVICE")
-    if chosen:
-        return chosen
-    if torch.cuda.is_available() and jax.default_backend() == "gpu":
-        return "cuda"
-    return "cpu"
-
-
-def to_torch(torch: Any, x: Any) -> Any:
-    """An array from a host callback as a torch tensor, sharing its buffer where DLPack can
-    (a JAX CPU array, a writable numpy array), else a copy."""
-    try:
-        return torch.from_dlpack(x)
-    except (BufferError, TypeError, RuntimeError):
-        return torch.as_tensor(np.array(x))
-
-
 def language_kwarg(module: Any) -> str | None:
     """The parameter of `module`'s forward (or call) that takes the instruction, if it names
     one of `LANGUAGE_KWARGS`."""
@@ -128,26 +98,17 @@ def language_kwarg(module: Any) -> str | None:
     return next((k for k in LANGUAGE_KWARGS if k in params), None)
 
 
-def _observation_spec(scene: Any) -> dict[str, jax.ShapeDtypeStruct]:
+def _observation_spec(scene: Any) -> dict[str, Any]:
     spec = scene.observation_spec
     return dict(spec) if isinstance(spec, Mapping) else {"obs": spec}
 
 
-class TorchStep:
-    """The per-step host callback: observations in, actions and latency out."""
+class ModuleRun:
+    """Calls the module on a step's batch: inputs moved to its device, the instruction passed
+    where it takes one, `reset(envs)` first for the envs whose episode starts."""
 
-    def __init__(
-        self,
-        torch: Any,
-        module: Any,
-        device: str,
-        shapes: Mapping[str, tuple[int, ...]],
-        action_size: int,
-        flat: bool,
-        instruction: str = "",
-    ) -> None:
-        self.torch, self.module, self.device = torch, module, device
-        self.shapes, self.action_size, self.flat = dict(shapes), action_size, flat
+    def __init__(self, torch: Any, module: Any, device: str, flat: bool, instruction: str) -> None:
+        self.torch, self.module, self.device, self.flat = torch, module, device, flat
         reset = getattr(module, "reset", None)
         self.reset = reset if callable(reset) else None
         self.instruction = instruction
@@ -157,32 +118,15 @@ class TorchStep:
         """The instruction passed to the module from the next step on."""
         self.instruction = text
 
-    def actions(self, obs: Mapping[str, Any], n: int, starting: np.ndarray | None) -> Any:
-        """The module's actions for a batch of `n` envs, a float32 (n, action_size) tensor on
-        the CPU; `starting`: rows that begin an episode (reset first)."""
-        torch = self.torch
-        with torch.inference_mode():
-            inputs = {
-                k: to_torch(torch, v).reshape(n, *self.shapes[k]).to(self.device)
-                for k, v in obs.items()
-            }
-            if self.reset is not None and starting is not None and starting.size:
-                self.reset(torch.as_tensor(starting, dtype=torch.int64))
-            language = {self.language: [self.instruction] * n} if self.language else {}
-            action = self.module(inputs["obs"] if self.flat else inputs, **language)
-            if not isinstance(action, torch.Tensor):
-                action = torch.as_tensor(action)
-            return action.detach().to("cpu", torch.float32).reshape(n, -1).contiguous()
-
-    @host_callback
-    def __call__(self, obs: dict[str, Any], t: Any) -> tuple[np.ndarray, np.ndarray]:
-        lead = np.shape(t)
-        steps = np.asarray(t).reshape(-1)
-        start = time.perf_counter()
-        action = self.actions(obs, len(steps), np.flatnonzero(steps == 0))
-        ms = 1000 * (time.perf_counter() - start)
-        out = action.numpy().reshape(*lead, self.action_size)
-        return out, np.full(lead, ms, np.float32)
+    def __call__(self, inputs: dict[str, Any], steps: Any) -> Any:
+        n = steps.shape[0]
+        inputs = {k: v.to(self.device) for k, v in inputs.items()}
+        if self.reset is not None:
+            starting = self.torch.nonzero(steps == 0).reshape(-1).to("cpu", self.torch.int64)
+            if starting.numel():
+                self.reset(starting)
+        language = {self.language: [self.instruction] * n} if self.language else {}
+        return self.module(inputs["obs"] if self.flat else inputs, **language)
 
 
 def torch_policy(scene: Any, arg: str | None) -> Policy:
@@ -190,7 +134,7 @@ def torch_policy(scene: Any, arg: str | None) -> Policy:
     two-env batch of zeros, and wraps it as a JAX policy (see the module docstring)."""
     if not arg:
         raise ConfigError("policy 'torch' needs MODULE:FACTORY: --policy torch:MODULE:FACTORY")
-    torch = _import_torch()
+    torch = import_torch()
     factory = load_factory(arg)
     spec = _observation_spec(scene)
     device = choose_device(torch)
@@ -214,10 +158,9 @@ def torch_policy(scene: Any, arg: str | None) -> Policy:
         module.eval()
     flat = not isinstance(scene.observation_spec, Mapping)
     shapes = {k: tuple(v.shape) for k, v in spec.items()}
-    step = TorchStep(torch, module, device, shapes, int(scene.action_size), flat, scene.instruction)
-    zeros = {k: np.zeros((2, *v.shape), v.dtype) for k, v in spec.items()}
+    run = ModuleRun(torch, module, device, flat, scene.instruction)
     try:
-        dry = step.actions(zeros, 2, None)
+        dry = dry_run(torch, run, shapes, {k: v.dtype for k, v in spec.items()}, device)
     except Exception as e:  # the user's module failing on a well-formed batch
         raise ConfigError(f"torch policy {arg}: failed on a batch of 2 observations: {e}") from e
     if dry.numel() != 2 * scene.action_size:
@@ -225,23 +168,6 @@ def torch_policy(scene: Any, arg: str | None) -> Policy:
             f"torch policy {arg} returned {dry.numel() // 2} action values per env; scene "
             f"{scene.name!r} takes {scene.action_size}"
         )
-    names = list(spec)
-    sd = jax.ShapeDtypeStruct
-
-    def init(key, obs_spec):
-        del key, obs_spec
-        return None, {"t": jnp.zeros((), jnp.int32), "ms": jnp.zeros((), jnp.float32)}
-
-    def act(params, pstate, obs, key):
-        del params, key
-        arrays = {"obs": obs} if flat else {k: obs[k] for k in names}
-        action, ms = jax.pure_callback(
-            step,
-            (sd((scene.action_size,), jnp.float32), sd((), jnp.float32)),
-            arrays,
-            pstate["t"],
-            vmap_method="broadcast_all",
-        )
-        return action, {"t": pstate["t"] + 1, "ms": ms}
-
-    return Policy(f"torch:{arg}", init, act, latency_ms=lambda s: s["ms"], instruct=step.instruct)
+    bridge = TorchBridge(torch, run, shapes, int(scene.action_size))
+    views = (lambda obs: {"obs": obs}) if flat else (lambda obs: obs)
+    return bridge_policy(f"torch:{arg}", bridge, views, instruct=run.instruct)

@@ -53,10 +53,15 @@ REFILL_BACKENDS = ("mjx", "warp", "c")
 
 
 def check_batching(
-    batching: str, backend: str, refill_every: int = 1, traces: bool = False
+    batching: str,
+    backend: str,
+    refill_every: int = 1,
+    traces: bool = False,
+    aligned: bool = False,
 ) -> None:
     """Reject a batching mode the run cannot use, before anything is built (`ConfigError`).
-    `auto` is always valid (see `resolve_batching`)."""
+    `auto` is always valid (see `resolve_batching`). `aligned`: the policy needs every env of
+    a batch to start its episode together (`Policy.aligned_episodes`)."""
     if batching not in BATCHING:
         raise unknown("batching", batching, BATCHING)
     if refill_every < 1:
@@ -68,19 +73,30 @@ def check_batching(
         )
     if batching == "refill" and traces:
         raise ConfigError("per-step traces (reward curves for plots) need batching 'chunks'")
+    if batching == "refill" and aligned:
+        raise ConfigError(
+            "this policy keeps one history for the whole batch (observation history or "
+            "temporal ensembling), so every env must start its episode together: use batching "
+            "'chunks'"
+        )
 
 
 def resolve_batching(
-    batching: str, backend: str, n_seeds: int | None, n_envs: int, traces: bool = False
+    batching: str,
+    backend: str,
+    n_seeds: int | None,
+    n_envs: int,
+    traces: bool = False,
+    aligned: bool = False,
 ) -> str:
     """`chunks` or `refill` for the run: `auto` is `refill` where it pays and applies (more
     seeds than envs, or a seed count not known yet; on mjx, warp or c, without per-step
-    traces), else `chunks`."""
-    check_batching(batching, backend, traces=traces)
+    traces, for a policy that does not need aligned episodes), else `chunks`."""
+    check_batching(batching, backend, traces=traces, aligned=aligned)
     if batching != "auto":
         return batching
     more = n_seeds is None or n_seeds > n_envs
-    applies = backend in REFILL_BACKENDS and not traces and more
+    applies = backend in REFILL_BACKENDS and not traces and not aligned and more
     return "refill" if applies else "chunks"
 
 
@@ -313,7 +329,7 @@ class RefillRunner(EpisodeRunner):
         memory_fraction: float = 0.85,
         devices: Sequence[jax.Device] | None = None,
     ) -> None:
-        check_batching("refill", scene.backend.name, refill_every)
+        check_batching("refill", scene.backend.name, refill_every, aligned=policy.aligned_episodes)
         for name, value in (("segment_steps", segment_steps), ("min_slots", min_slots)):
             if value is not None and value < 1:
                 raise ConfigError(f"{name} must be a positive integer, got {value}")

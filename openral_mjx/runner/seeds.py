@@ -33,9 +33,10 @@ def make_runner(
 ) -> EpisodeRunner:
     """The runner for `batching` (`chunks`, `refill`, or `auto`: `refill` where it applies);
     traces (`record`) need `chunks`."""
-    check_batching(batching, scene.backend.name, refill_every, traces=bool(record))
+    aligned = policy.aligned_episodes
+    check_batching(batching, scene.backend.name, refill_every, bool(record), aligned)
     backend = scene.backend.name
-    if resolve_batching(batching, backend, None, n_envs, traces=bool(record)) == "chunks":
+    if resolve_batching(batching, backend, None, n_envs, bool(record), aligned) == "chunks":
         return EpisodeRunner(
             scene,
             policy,
@@ -75,14 +76,15 @@ def run_seeds(
     """Roll out every seed once with `min(n_envs, len(seeds))` envs at a time (see
     `EpisodeRunner` and `RefillRunner`; `auto` batching: see `resolve_batching`)."""
     check_counts(n_envs, len(seeds), max_steps)
-    check_batching(batching, scene.backend.name, refill_every, traces=bool(record))
+    aligned = policy.aligned_episodes
+    check_batching(batching, scene.backend.name, refill_every, bool(record), aligned)
     runner = make_runner(
         scene,
         policy,
         n_envs=min(n_envs, len(seeds)),
         max_steps=max_steps,
         batching=resolve_batching(
-            batching, scene.backend.name, len(seeds), n_envs, traces=bool(record)
+            batching, scene.backend.name, len(seeds), n_envs, bool(record), aligned
         ),
         refill_every=refill_every,
         record=record,

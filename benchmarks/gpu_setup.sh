@@ -5,8 +5,11 @@
 #   later calls:      source benchmarks/gpu_setup.sh
 set -e
 export PYTHONPATH=/tmp/site:$PWD PYTHONUNBUFFERED=1
-# .gpu may come split over calls (.gpu, .gpu2; .gpu3: brax for finetune) to fit beside the rest.
-for d in .gpu .gpu2 .gpu3; do
+# .gpu may come split over calls (.gpu, .gpu2; .gpu3: brax for finetune; .gpulr: lerobot 0.6.1
+# and the small packages it imports that the image lacks; .gpucv: opencv-python-headless, which
+# lerobot imports at start) to fit beside the rest. Fetch the last two with
+# benchmarks/lerobot_wheels.sh.
+for d in .gpu .gpu2 .gpu3 .gpulr .gpucv; do
   if [ -d "$d" ] && [ ! -f "/tmp/site/$d-done" ]; then
     # each set to its own folder, then merged: pip --target skips a package folder that is
     # already there (mujoco/ holds both mujoco's and mujoco-mjx's files)

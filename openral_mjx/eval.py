@@ -103,8 +103,9 @@ class EvalArgs:
     randomize: tuple[str, ...] = ()
     """Factors drawn per seed, NAME=LOW:HIGH (LOWx:HIGHx: multiples of the model's values) or
     NAME=VALUE: friction, mass, kp, damping, armature (physics), delay, action_noise
-    (control), joint_noise, object_noise, depth_noise, depth_dropout, camera_pos, camera_rot
-    (sensing). Each is an episode factor in the report's breakdown."""
+    (control), joint_noise, object_noise, depth_noise, depth_dropout, camera_pos, camera_rot,
+    light (sensing; light: RGB images on warp). Each is an episode factor in the report's
+    breakdown."""
     sweep: str | None = None
     """NAME=LOW:HIGH:N: run the same seeds at N evenly spaced values of one factor; writes a
     sweep report (success per value, paired tests between neighbours, Holm-corrected)."""

@@ -92,6 +92,19 @@ def test_scene_without_a_target_refuses(push):
         randomize(push, ["depth_noise=0:0.01"])
 
 
+def test_light_needs_rendered_rgb_images(push):
+    """Only RGB images see the lights, and only `warp` renders them: elsewhere `light` is a
+    config error that says so."""
+    assert parse_factor("light=0.5x:1.5x")[0] == FactorRange("light", 0.5, 1.5, True)
+    with pytest.raises(ConfigError, match=r"cannot randomise 'light' \(.*rendered RGB images"):
+        randomize(push, ["light=0.5x:1.5x"])
+    depth = build_scene(
+        "so101_box", {"obs_depth_cameras": ("overhead",)}, backend="c", n_envs=2, threads=1
+    )
+    with pytest.raises(ConfigError, match=r"cannot randomise 'light'.*valid: .*camera_rot"):
+        randomize(depth, ["light=0.3:1"])
+
+
 def test_holm_against_closed_form_and_simulation():
     # Sorted 0.005, 0.01, 0.03, 0.04 times 4, 3, 2, 1, then the running maximum.
     np.testing.assert_allclose(holm_adjusted([0.01, 0.04, 0.03, 0.005]), [0.03, 0.06, 0.06, 0.02])
@@ -351,3 +364,57 @@ def test_camera_jitter_on_the_warp_renderer():
     moved = np.asarray(state.physics.quantities.sensors["depth_overhead"])
     still = np.asarray(nominal.physics.quantities.sensors["depth_overhead"])
     assert np.abs(moved - still).max() > 1e-3
+
+
+@pytest.mark.slow  # MuJoCo-Warp's renderer on the CPU: ~2 min of kernel builds
+def test_light_on_the_warp_renderer():
+    """On warp, each env's RGB image is lit by its own light: two envs' images differ, and
+    each equals, bit for bit, the image of a backend built from a model whose light was set to
+    that env's value by hand, at reset and after a step; a seed draws its value, and its
+    image, in any batch."""
+    pytest.importorskip("warp")
+    from openral_mjx.physics import PhysicsSettings
+    from openral_mjx.physics.warp_backend import WarpBackend
+    from openral_mjx.scenes import make_scene
+
+    options = {"obs_rgb_cameras": ["overhead"], "obs_rgb_size": [32, 24]}
+    settings = PhysicsSettings(batch_size=2)
+    scene = make_scene("so101_box", options, backend="warp", settings=settings)
+    r = randomize(scene, ["light=0.2x:2x"])
+    seeds = jnp.array([1, 2])
+    state = _reset(r, seeds)
+    action = np.random.default_rng(0).uniform(-0.6, 0.6, (2, scene.action_size))
+    stepped = jax.jit(jax.vmap(r.step))(state, jnp.asarray(action, jnp.float32))
+    m = scene.mj_model
+    light = m.light("ceiling_light").id
+    scale = np.asarray(state.info[INFO_KEY]["values"]["light"])
+    np.testing.assert_array_equal(
+        np.asarray(jax.vmap(r.episode_factors)(state)["light_scale"]), scale
+    )
+    diffuse = np.asarray(state.physics.fields["light_diffuse"])[:, light]
+    np.testing.assert_allclose(diffuse, scale[:, None] * m.light_diffuse[light], rtol=1e-6)
+    assert abs(scale[0] - scale[1]) > 0.2
+    key = "rgb_overhead"
+    start, size = scene.obs_layout[key]
+    images = [np.asarray(s.physics.quantities.sensors[key]) for s in (state, stepped)]
+    np.testing.assert_array_equal(
+        np.asarray(state.obs[:, start : start + size]), images[0].reshape(2, -1)
+    )
+    for image in images:
+        assert np.abs(image[0] - image[1]).max() > 0.1
+    q = state.physics.quantities
+    for i in range(2):
+        spec = scene.spec.copy()
+        spec.light("ceiling_light").diffuse = diffuse[i].tolist()
+        by_hand = WarpBackend(spec, scene.backend.quantity_spec, scene.backend.n_substeps, settings)
+        ref = jax.jit(jax.vmap(by_hand.init))(q.qpos[i : i + 1], q.qvel[i : i + 1])
+        np.testing.assert_array_equal(np.asarray(ref.quantities.sensors[key])[0], images[0][i])
+        render = jax.vmap(lambda d, c=by_hand.cameras: c.render(d)[0][key])
+        ref = np.asarray(jax.jit(render)(stepped.physics.data))
+        np.testing.assert_array_equal(ref[i], images[1][i])
+    # The same seeds in the other order: the same values, the same images.
+    again = _reset(r, seeds[::-1])
+    np.testing.assert_array_equal(np.asarray(again.info[INFO_KEY]["values"]["light"]), scale[::-1])
+    np.testing.assert_array_equal(
+        np.asarray(again.physics.quantities.sensors[key]), images[0][::-1]
+    )

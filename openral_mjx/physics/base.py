@@ -98,7 +98,8 @@ class PhysicsState:
     fields: dict[str, jax.Array] = struct.field(default_factory=dict)
 
 
-# Model fields an env may override (`PhysicsState.fields`): geometry and per-episode physics.
+# Model fields an env may override (`PhysicsState.fields`): geometry, per-episode physics and
+# rendering (`light_diffuse`: only `warp`'s renderer reads it).
 PER_ENV_FIELDS = frozenset(
     {
         "body_pos",
@@ -112,6 +113,7 @@ PER_ENV_FIELDS = frozenset(
         "dof_M0",
         "cam_pos",
         "cam_quat",
+        "light_diffuse",
         "actuator_gainprm",
         "actuator_biasprm",
     }

@@ -104,7 +104,7 @@ class WarpBackend(MjxBackend):
         d = super()._kinematics(mx, d, fields)
         if self._static_geoms.size and mx is not self.mx:
             d = self._place_static_geoms(mx, d)
-        return d if self.cameras is None else self.cameras.place_cameras(d, fields)
+        return d if self.cameras is None else self.cameras.place(d, fields)
 
     def _place_static_geoms(self, mx: mjx.Model, d: mjx.Data) -> mjx.Data:
         """World poses of the geoms of bodies welded to the world, from this env's body poses.
@@ -130,7 +130,7 @@ class WarpBackend(MjxBackend):
         d, q = super()._readout(d, fields)
         if self.cameras is None:
             return d, q
-        images, d = self.cameras.render(d)
+        images, d = self.cameras.render(d, fields)
         return d, q.replace(sensors={**q.sensors, **images})
 
     def _data_ok(self, d: mjx.Data) -> jax.Array:

@@ -9,6 +9,12 @@ shape evaluation), it renders a batch of one.
 
 Depth is planar (along the optical axis) like the ray-cast depth camera, `max_range_m` where
 the renderer saw nothing or a surface outside the camera's range; RGB is float32 in [0, 1].
+
+RGB is lit by the model's lights and the headlight. The renderer reads each world's own light
+colours (`RENDER_FIELDS`: an env's fields of those names reach it as a batched model, so the
+`light` factor varies them per env); the headlight is baked into its kernel, the same in
+every world. Lights are placed in the data by MuJoCo's `mj_camlight`, which `mjx.step` runs and
+kinematics alone does not: `WarpCameras.place` puts them (and the cameras) for the first frame.
 """
 
 from __future__ import annotations
@@ -19,12 +25,18 @@ from typing import Any
 import jax
 import jax.numpy as jnp
 import mujoco
+import numpy as np
 
 from openral_mjx.physics.base import camera_local
 from openral_mjx.physics.cameras import RgbSpec
 from openral_mjx.physics.mjx_backend import mjx
 from openral_mjx.raycast import DepthSpec
+from openral_mjx.raycast.geoms import mat_vec, quat_to_mat
 from openral_mjx.raycast.mount import Mount, camera, moved
+
+# Per-env model fields the renderer reads (from `PhysicsState.fields`); the others it reads
+# from the shared model.
+RENDER_FIELDS = ("light_diffuse",)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -54,6 +66,54 @@ def renderable(specs: list[DepthSpec | RgbSpec]) -> list[DepthSpec | RgbSpec]:
         groups = groups or s.groups
         out.append(s)
     return out
+
+
+# MuJoCo's `mjtCamLight` modes, as the ints `MjModel.light_mode` holds.
+_FIXED, _TRACK, _TRACKCOM, _TARGET, _TARGETCOM = range(5)
+
+
+def _subtree_com(model: mujoco.MjModel, xipos: jax.Array) -> jax.Array:
+    """Each body's subtree centre of mass (nbody, 3), as MuJoCo's `mj_comPos` computes it
+    from the model's masses."""
+    inside = np.zeros((model.nbody, model.nbody), np.float32)  # [a, b]: b in a's subtree
+    for b in range(model.nbody):
+        a = b
+        inside[a, b] = 1.0
+        while a:
+            a = int(model.body_parentid[a])
+            inside[a, b] = 1.0
+    weighted = jnp.asarray(model.body_mass, jnp.float32)[:, None] * xipos
+    total = model.body_subtreemass
+    scale = jnp.asarray(1.0 / np.maximum(total, mujoco.mjMINVAL), jnp.float32)[:, None]
+    com = (jnp.asarray(inside) @ weighted) * scale
+    return jnp.where(jnp.asarray(total < mujoco.mjMINVAL)[:, None], xipos, com)
+
+
+def light_poses(
+    model: mujoco.MjModel, xpos: jax.Array, xquat: jax.Array, xipos: jax.Array
+) -> tuple[jax.Array, jax.Array]:
+    """Every light's world position and unit direction, (nlight, 3) each, from one env's body
+    poses (`xpos`, `xquat`) and inertial-frame positions (`xipos`), as MuJoCo's `mj_camlight`
+    places them in each mode (one tracking a subtree's centre of mass follows the model's
+    masses)."""
+    modes = [int(k) for k in model.light_mode]
+    com = _subtree_com(model, xipos) if {_TRACKCOM, _TARGETCOM} & set(modes) else None
+    positions, directions = [], []
+    for i, kind in enumerate(modes):
+        b, target = int(model.light_bodyid[i]), int(model.light_targetbodyid[i])
+        rot = quat_to_mat(xquat[b])
+        pos = xpos[b] + mat_vec(rot, jnp.asarray(model.light_pos[i], jnp.float32))
+        direction = mat_vec(rot, jnp.asarray(model.light_dir[i], jnp.float32))
+        if kind in (_TRACK, _TRACKCOM):
+            origin = xpos[b] if kind == _TRACK else com[b]  # type: ignore[index]
+            offset = model.light_pos0[i] if kind == _TRACK else model.light_poscom0[i]
+            pos = origin + jnp.asarray(offset, jnp.float32)
+            direction = jnp.asarray(model.light_dir0[i], jnp.float32)
+        elif kind in (_TARGET, _TARGETCOM) and target >= 0:
+            direction = (xpos[target] if kind == _TARGET else com[target]) - pos  # type: ignore[index]
+        positions.append(pos)
+        directions.append(direction / jnp.maximum(jnp.linalg.norm(direction), mujoco.mjMINVAL))
+    return jnp.stack(positions), jnp.stack(directions)
 
 
 class WarpCameras:
@@ -103,10 +163,11 @@ class WarpCameras:
             )
         return self._contexts[nworld]
 
-    def place_cameras(self, d: mjx.Data, fields: dict[str, jax.Array] | None = None) -> mjx.Data:
-        """`d` with the rendered cameras' poses computed from its body poses (what MuJoCo's
-        `mj_camlight` does for fixed cameras; kinematics alone leaves them unset), where this
-        env's `cam_pos`/`cam_quat` fields put them."""
+    def place(self, d: mjx.Data, fields: dict[str, jax.Array] | None = None) -> mjx.Data:
+        """`d` with the rendered cameras' poses and the lights' computed from its body poses
+        (what MuJoCo's `mj_camlight` does; kinematics alone leaves them unset, and a light left
+        at the origin with no direction lights nothing), the cameras where this env's
+        `cam_pos`/`cam_quat` fields put them."""
         ids = jnp.asarray(list(self._mounts), jnp.int32)
         poses = []
         for cam, mount in self._mounts.items():
@@ -118,24 +179,30 @@ class WarpCameras:
             poses.append((pos, rot))
         cam_xpos = d.cam_xpos.at[ids].set(jnp.stack([p for p, _ in poses]))
         cam_xmat = d.cam_xmat.at[ids].set(jnp.stack([r for _, r in poses]))
-        return d.replace(cam_xpos=cam_xpos, cam_xmat=cam_xmat)
+        d = d.replace(cam_xpos=cam_xpos, cam_xmat=cam_xmat)
+        if not self.mj_model.nlight:
+            return d
+        pos, direction = light_poses(self.mj_model, d.xpos, d.xquat, d.xipos)
+        return d.tree_replace({"_impl.light_xpos": pos, "_impl.light_xdir": direction})
 
-    def _render(self, d: mjx.Data, axis_size: int, batched: list[bool]) -> tuple[dict, jax.Array]:
-        """Render a batch of `axis_size` envs (`batched`: which leaves of `d`), re-entering
-        `vmap` so that MJX's own batching rules marshal the data for MuJoCo-Warp. Returns the
-        images and the envs' execution tokens after rendering (the only part of the data
-        rendering changes)."""
+    def _render(
+        self, d: mjx.Data, model: dict[str, jax.Array], axis_size: int, batched: list[bool]
+    ) -> tuple[dict, jax.Array]:
+        """Render a batch of `axis_size` envs (`batched`: which leaves of (`d`, `model`)),
+        re-entering `vmap` so that MJX's own batching rules marshal the data, and the model
+        with the envs' own `model` fields, for MuJoCo-Warp. Returns the images and the envs'
+        execution tokens after rendering (the only part of the data rendering changes)."""
         from mujoco.mjx._src import render_util
         from mujoco.mjx.warp import render_context
 
         rc = self.context(axis_size).pytree()
 
-        leaves, treedef = jax.tree.flatten(d)
+        leaves, treedef = jax.tree.flatten((d, model))
 
         def one(leaves: list[jax.Array]) -> tuple[jax.Array, jax.Array, jax.Array]:
-            d = jax.tree.unflatten(treedef, leaves)
+            d, model = jax.tree.unflatten(treedef, leaves)
             d = mjx.refit_bvh(self.mx, d, rc)
-            rgb, depth, d = mjx.render(self.mx, d, rc)
+            rgb, depth, d = mjx.render(self.mx.replace(**model), d, rc)
             return rgb, depth, d._impl._jax_token
 
         in_axes = [0 if b else None for b in batched]
@@ -158,20 +225,25 @@ class WarpCameras:
 
     def _make_render(self):
         @jax.custom_batching.custom_vmap
-        def render_token(d: mjx.Data) -> tuple[dict[str, jax.Array], jax.Array]:
-            out = self._render(d, 1, [False] * len(jax.tree.leaves(d)))
+        def render_token(
+            d: mjx.Data, model: dict[str, jax.Array]
+        ) -> tuple[dict[str, jax.Array], jax.Array]:
+            out = self._render(d, model, 1, [False] * len(jax.tree.leaves((d, model))))
             return jax.tree.map(lambda x: x[0], out)
 
         @render_token.def_vmap
-        def _batched(axis_size: int, in_batched: Any, d: mjx.Data):
-            (batched,) = in_batched
-            out = self._render(d, axis_size, jax.tree.leaves(batched))
+        def _batched(axis_size: int, in_batched: Any, d: mjx.Data, model: dict[str, jax.Array]):
+            out = self._render(d, model, axis_size, jax.tree.leaves(tuple(in_batched)))
             return out, jax.tree.map(lambda _: True, out)
 
-        def render(d: mjx.Data) -> tuple[dict[str, jax.Array], mjx.Data]:
-            """One env's images, and its data carrying the post-render execution token (so
-            the next physics step is ordered after the render)."""
-            images, token = render_token(d)
+        def render(
+            d: mjx.Data, fields: dict[str, jax.Array] | None = None
+        ) -> tuple[dict[str, jax.Array], mjx.Data]:
+            """One env's images, drawn with its `fields` of the model's `RENDER_FIELDS`, and
+            its data carrying the post-render execution token (so the next physics step is
+            ordered after the render)."""
+            model = {k: v for k, v in (fields or {}).items() if k in RENDER_FIELDS}
+            images, token = render_token(d, model)
             return images, d.tree_replace({"_impl._jax_token": token})
 
         return render

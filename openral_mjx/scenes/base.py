@@ -60,6 +60,8 @@ class RandomizationTargets:
             robot executes before the first one arrives (`delay`).
         cameras: ids of the cameras whose depth or RGB images the observation holds
             (`camera_pos`, `camera_rot`).
+        lights: ids of the model lights that light the observation's RGB images (`light`);
+            empty where it holds none (only `warp` renders them).
     """
 
     object_bodies: tuple[int, ...] = ()
@@ -71,6 +73,7 @@ class RandomizationTargets:
     range_obs: tuple[tuple[str, float], ...] = ()
     hold: Callable[[State], jax.Array] | None = None
     cameras: tuple[int, ...] = ()
+    lights: tuple[int, ...] = ()
 
 
 class Scene(abc.ABC):

@@ -14,7 +14,9 @@ model's own values (recorded as ``NAME_scale``); a plain range sets them. Contro
 on the policy's action, sensing factors on the observation the policy reads; the scene's own
 logic (success, frame stacking) sees the true state. Camera factors move the observed cameras
 through their per-env `cam_pos`/`cam_quat` (ray cast on every backend, rendered on `warp`);
-the reset's images are drawn again from the moved cameras.
+`light` sets (or, ``LOWx:HIGHx``, scales) the diffuse colour of the scene's lights, each
+channel, in the RGB images `warp` renders (the headlight, baked into MuJoCo-Warp's kernel,
+stays as it is). The reset's images are drawn again from the moved cameras and lights.
 
 MuJoCo C takes the inertia of a "simple" body (a free object, a lone slider) from `dof_M0`,
 which `mj_setConst` derives from masses and armatures at compile time, so a mass or armature
@@ -111,8 +113,15 @@ FACTORS: dict[str, FactorKind] = {
         maximum=JITTER_ROT_RAD,
         unit="rad",
     ),
+    "light": FactorKind(
+        "diffuse intensity of the scene's lights in rendered RGB images (warp, obs_rgb_cameras)",
+        "lights",
+        True,
+    ),
 }
 CAMERA_FACTORS = ("camera_pos", "camera_rot")
+# Factors that change what the reset's images show: they are drawn again with the env's fields.
+IMAGE_FACTORS = (*CAMERA_FACTORS, "light")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -388,6 +397,10 @@ class Randomized(Scene):
                 [jnp.full((cams.size, 1), jnp.cos(half)), jnp.sin(half) * axes], axis=1
             )
             fields["cam_quat"] = quat.at[cams].set(_quat_mul(quat[cams], turn))
+        if f := self._factor("light"):
+            lights = np.asarray(self.targets.lights, np.int64)
+            diffuse = field("light_diffuse")
+            fields["light_diffuse"] = diffuse.at[lights].set(scaled(f, diffuse[lights]))
         simple = self._fields.get("simple_dofs")
         if simple is not None:
             # MuJoCo C takes the inertia of a "simple" body's dofs from `dof_M0` (computed at
@@ -465,7 +478,7 @@ class Randomized(Scene):
     def _randomize(self, state: State, key: jax.Array) -> State:
         values = self.sample(key)
         physics = state.physics.replace(fields=self._apply_fields(state.physics.fields, values))
-        if set(CAMERA_FACTORS) & set(values):
+        if set(IMAGE_FACTORS) & set(values):
             state = self._recast(state, physics)
             physics = state.physics
         extra: dict[str, Any] = {
@@ -480,9 +493,9 @@ class Randomized(Scene):
         return self._wrap(state.replace(physics=physics), extra)
 
     def _recast(self, state: State, physics: Any) -> State:
-        """The reset state seen from this env's cameras: the same joint state initialised
-        with its fields (the scene's reset drew its images from the model's camera poses),
-        the sensor slices of the observation read anew."""
+        """The reset state seen from this env's cameras in its light: the same joint state
+        initialised with its fields (the scene's reset drew its images from the model's camera
+        poses and lights), the sensor slices of the observation read anew."""
         q = physics.quantities
         physics = self.inner.backend.init(q.qpos, q.qvel, physics.fields)
         obs, layout = state.obs, self.inner.obs_layout

@@ -117,3 +117,11 @@ def observed_cameras(specs: tuple[SensorSpec, ...], model: mujoco.MjModel) -> tu
     `camera_rot` move: `RandomizationTargets.cameras`)."""
     cams = {s.camera for s in specs if isinstance(s, DepthSpec | RgbSpec)}
     return tuple(sorted(model.camera(c).id for c in cams))
+
+
+def rendered_lights(specs: tuple[SensorSpec, ...], model: mujoco.MjModel) -> tuple[int, ...]:
+    """Ids of the active lights of `model` when `specs` observe an RGB image, else none (what
+    `light` varies: `RandomizationTargets.lights`; depth and lasers see no light)."""
+    if not any(isinstance(s, RgbSpec) for s in specs):
+        return ()
+    return tuple(i for i in range(model.nlight) if model.light_active[i])

@@ -30,6 +30,7 @@ from openral_mjx.scenes.composition import yaw_quat
 from openral_mjx.scenes.sensor_obs import (
     observed_cameras,
     range_slices,
+    rendered_lights,
     sensor_shapes,
 )
 from openral_mjx.scenes.so101_box import observation
@@ -79,6 +80,7 @@ class So101Box(Scene):
         self._layout = observation.obs_layout(len(self.robot_joint_ids), self.sensor_shapes)
         self._range_slices = range_slices(sensors)
         self._cameras = observed_cameras(sensors, self.mj_model)
+        self._lights = rendered_lights(sensors, self.mj_model)
 
     @property
     def obs_layout(self) -> dict[str, tuple[int, int]]:
@@ -135,6 +137,7 @@ class So101Box(Scene):
             object_obs=("tube_pos", "tube_quat", "block_pos", "block_quat"),
             range_obs=self._range_slices,
             cameras=self._cameras,
+            lights=self._lights,
             hold=servo_hold(m, {}),
         )
 

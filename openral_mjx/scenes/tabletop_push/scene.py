@@ -27,6 +27,7 @@ from openral_mjx.scenes.composition import yaw_quat
 from openral_mjx.scenes.sensor_obs import (
     observed_cameras,
     range_slices,
+    rendered_lights,
     sensor_shapes,
 )
 from openral_mjx.scenes.tabletop_push import observation
@@ -91,6 +92,7 @@ class TabletopPush(Scene):
         self._layout = observation.obs_layout(len(self.robot_joint_ids), self.sensor_shapes)
         self._range_slices = range_slices(sensors)
         self._cameras = observed_cameras(sensors, self.mj_model)
+        self._lights = rendered_lights(sensors, self.mj_model)
 
     @property
     def obs_layout(self) -> dict[str, tuple[int, int]]:
@@ -148,6 +150,7 @@ class TabletopPush(Scene):
             object_obs=("cube_pos", "cube_quat"),
             range_obs=self._range_slices,
             cameras=self._cameras,
+            lights=self._lights,
             hold=servo_hold(m, self.arm.held),
         )
 

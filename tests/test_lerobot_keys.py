@@ -10,6 +10,7 @@ import pytest
 from openral_mjx.core.errors import ConfigError
 from openral_mjx.evaluation import build_scene
 from openral_mjx.policies.lerobot import (
+    implied_camera_options,
     key_map,
     lerobot_policy,
     read_features,
@@ -147,3 +148,41 @@ def test_sensor_slices_of_a_flat_observation_are_their_own_arrays():
         assert key_map(state, arrays) == {"observation.state": "obs"}
     finally:
         scene.close()
+
+
+def _config(path, features):
+    path.mkdir()
+    inputs = {k: {"type": t, "shape": list(s)} for k, (t, s) in features.items()}
+    config = {"input_features": inputs, "output_features": {"action": {"shape": [6]}}}
+    (path / "config.json").write_text(json.dumps(config))
+    return f"lerobot:{path}"
+
+
+def test_a_policys_cameras_set_the_scenes_rgb_options(tmp_path):
+    """The cameras and size a lerobot policy's config asks for become the scene's
+    `obs_rgb_cameras`/`obs_rgb_size`, unless the user set them or the scene has no such
+    options."""
+    from openral_mjx.scenes import SCENES
+
+    push = SCENES.get("tabletop_push").options_cls
+    spec = _config(
+        tmp_path / "act",
+        {
+            "observation.images.overhead": ("VISUAL", (3, 32, 48)),
+            "observation.images.front": ("VISUAL", (3, 32, 48)),
+            "observation.state": ("STATE", (24,)),
+        },
+    )
+    want = {"obs_rgb_cameras": ["front", "overhead"], "obs_rgb_size": [48, 32]}
+    assert implied_camera_options(spec, push, None) == want
+    assert implied_camera_options(spec, push, {"obs_rgb_cameras": ["front"]}) == {}
+    assert implied_camera_options(spec, SCENES.get("libero").options_cls, None) == {}
+    assert implied_camera_options("scripted", push, None) == {}
+    mixed = _config(
+        tmp_path / "mixed",
+        {
+            "observation.images.overhead": ("VISUAL", (3, 32, 48)),
+            "observation.images.front": ("VISUAL", (3, 64, 64)),
+        },
+    )
+    assert implied_camera_options(mixed, push, None) == {}  # no one size fits both

@@ -18,6 +18,7 @@ from openral_mjx.evaluation.provenance import device_description, package_versio
 from openral_mjx.evaluation.sequential import SequentialRule, sequential_rule
 from openral_mjx.physics import PhysicsSettings
 from openral_mjx.policies import Policy, make_policy
+from openral_mjx.policies.lerobot import implied_camera_options
 from openral_mjx.report import EvalReport, SequentialInfo, TaskRow
 from openral_mjx.runner import (
     RunTiming,
@@ -26,7 +27,7 @@ from openral_mjx.runner import (
     resolve_batching,
     run_seeds,
 )
-from openral_mjx.scenes import Scene, make_scene, randomization
+from openral_mjx.scenes import SCENES, Scene, make_scene, randomization
 from openral_mjx.stats.breakdown import breakdown
 from openral_mjx.stats.intervals import wilson_interval
 from openral_mjx.stats.sequential import RULE
@@ -167,6 +168,9 @@ def run_evaluation(
     owned = contextlib.ExitStack()
     with owned:  # on an error, close what this call built (worker processes)
         if isinstance(scene, str):
+            if isinstance(policy, str):  # a lerobot policy's cameras, unless options name them
+                implied = implied_camera_options(policy, SCENES.get(scene).options_cls, options)
+                options = {**implied, **(options or {})}
             scene = build_scene(
                 scene,
                 options,

@@ -34,6 +34,7 @@ between evaluations (a suite's tasks).
 
 from __future__ import annotations
 
+import dataclasses
 import importlib.util
 import json
 import os
@@ -77,6 +78,39 @@ def read_features(path: Path) -> tuple[dict[str, tuple[str, tuple[int, ...]]], i
     except (ValueError, KeyError, TypeError) as e:
         raise ConfigError(f"lerobot policy {str(path)!r}: unreadable config.json ({e})") from None
     return inputs, int(np.prod(action))
+
+
+def implied_camera_options(
+    policy: str, options_cls: type, options: Mapping[str, Any] | None
+) -> dict[str, Any]:
+    """Scene options a `lerobot:PATH` policy's image features imply, so that its cameras need
+    no `--opt`: `obs_rgb_cameras` (the NAMEs of its ``observation.images.NAME`` features) and
+    `obs_rgb_size` ((W, H) of them), where the scene renders RGB cameras (its options have
+    both), the features share one size, the policy maps no keys by hand, and `options` set
+    neither. Empty otherwise; an unknown camera is then the scene's own error."""
+    if not policy.startswith("lerobot:") or not dataclasses.is_dataclass(options_cls):
+        return {}
+    names = {f.name for f in dataclasses.fields(options_cls)}
+    given = set(options or {})
+    if not {"obs_rgb_cameras", "obs_rgb_size"} <= names or given & {
+        "obs_rgb_cameras",
+        "obs_rgb_size",
+    }:
+        return {}
+    path = Path(policy.removeprefix("lerobot:")).expanduser()
+    if not (path / "config.json").is_file() or (path / KEYS_FILE).is_file():
+        return {}
+    features, _ = read_features(path)
+    images = {
+        name.removeprefix("observation.images."): shape
+        for name, (kind, shape) in features.items()
+        if kind == "VISUAL" and name.startswith("observation.images.") and len(shape) == 3
+    }
+    sizes = {(shape[2], shape[1]) for shape in images.values()}
+    if not images or len(sizes) != 1 or any(shape[0] != 3 for shape in images.values()):
+        return {}
+    (size,) = sizes
+    return {"obs_rgb_cameras": sorted(images), "obs_rgb_size": list(size)}
 
 
 def scene_arrays(scene: Any) -> dict[str, jax.ShapeDtypeStruct]:

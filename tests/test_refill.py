@@ -70,6 +70,26 @@ def test_a_draining_batch_shrinks_and_keeps_every_episode(push_c, chunked):
     assert arrays["steps"].sum() <= shrunk.env_steps < full.env_steps
 
 
+def test_resets_in_slices_give_the_chunked_episodes(push_c, chunked, monkeypatch):
+    """On `c` a refill resets only the slots that take a seed, `RESET_SLICE` at a time: in
+    slices of 2 (several slices in one refill, the last one padded) every seed still gets its
+    chunked episode bit for bit."""
+    monkeypatch.setattr("openral_mjx.runner.refill.RESET_SLICE", 2)
+    policy, reference, _ = chunked
+    arrays, _ = run_seeds(
+        push_c,
+        policy,
+        None,
+        seeds=SEEDS,
+        n_envs=5,
+        max_steps=STEPS,
+        batching="refill",
+        refill_every=16,
+    )
+    for k in reference:
+        np.testing.assert_array_equal(arrays[k], reference[k], err_msg=k)
+
+
 def test_shrink_sizes():
     assert shrink_sizes(4096, 3, 1024) == [2048, 1024]
     assert shrink_sizes(4096, 2, 16) == [2048, 1024]

@@ -11,6 +11,11 @@ where a backend's episodes do not depend on the batch: `c`, and warp on a CPU). 
 takes the fresh state's slice of every per-env leaf; leaves the whole batch shares (warp's
 contact buffer) are rebuilt by the next step and stay as they are.
 
+Where a seed's episode does not depend on the batch layout at all (`layout_invariant`: `c`),
+a refill resets only the slots that take a seed, a slice of `RESET_SLICE` at a time, not the
+whole batch: on `c` a reset is a MuJoCo C forward pass per env, and a control step ends a
+handful of episodes out of a thousand slots.
+
 The loop runs in segments of at most a given number of control steps, so the host can read
 between segments which seeds have finished. Statistics and stopping rules must use the
 finished *prefix* of the seeds only (`finished_prefix`): successes end episodes early, so the
@@ -154,6 +159,11 @@ def per_env_leaves(scene: Scene) -> Any:
     return jax.tree.map(lambda a, b: b.ndim == a.ndim + 1, one, two)
 
 
+# Envs a refill on a layout-invariant backend resets at once (see `make_refill_fns`): a few
+# more than the episodes a step of a thousand slots ends, on average.
+RESET_SLICE = 16
+
+
 def make_refill_fns(
     scene: Scene, policy: Policy, max_steps: int, n_slots: int, refill_every: int = 1
 ) -> tuple[Callable[[Any, jax.Array], RefillCarry], Callable[..., RefillCarry]]:
@@ -165,6 +175,11 @@ def make_refill_fns(
 
     budget_ms = 1000.0 * scene.control_dt
     state_per_env = per_env_leaves(scene)
+    # A reset of fewer envs than the batch, at other positions, gives each seed the same bits
+    # only where the backend's episodes do not depend on the layout (`c`): there a refill
+    # resets the slots that take a seed in slices of `RESET_SLICE` envs, not the whole batch.
+    # Elsewhere (mjx, warp) the whole batch resets, as in the chunked runner.
+    sliced = scene.backend.layout_invariant
 
     def fresh(seeds: jax.Array, rows: jax.Array) -> Slots:
         chosen = seeds[rows]
@@ -180,34 +195,59 @@ def make_refill_fns(
             ended=jnp.zeros(rows.shape, bool),
         )
 
-    def write_out(carry: RefillCarry) -> RefillCarry:
-        """Write the rows of episodes that ended since the last write."""
-        s = carry.slots
+    def write_out(carry: RefillCarry, s: Slots | None = None) -> tuple[RefillCarry, Slots]:
+        """Write the rows of the episodes of slots `s` (default: the carry's) that ended since
+        the last write; returns the carry and `s` with those slots marked ended."""
+        s = carry.slots if s is None else s
         n = carry.finished.shape[0]
         over = ~s.ended & (s.state.done | (s.t >= max_steps))
         rows = jnp.where(over, s.seed_index, n)  # row n: dropped
         acc = s.acc.replace(info=jax.vmap(scene.episode_info)(s.state))
         results = jax.tree.map(lambda r, a: r.at[rows].set(a, mode="drop"), carry.results, acc)
-        return carry.replace(
-            slots=s.replace(ended=s.ended | over),
-            results=results,
-            finished=carry.finished.at[rows].set(True, mode="drop"),
+        carry = carry.replace(
+            results=results, finished=carry.finished.at[rows].set(True, mode="drop")
         )
+        return carry, s.replace(ended=s.ended | over)
 
     def refill(carry: RefillCarry, seeds: jax.Array) -> RefillCarry:
         """Ended slots take the next seeds in order; those past the last seed go idle."""
         s, n = carry.slots, seeds.shape[0]
+        n_slots = s.t.shape[0]
         want = s.ended & (s.seed_index < n)
         rows = carry.next_seed[0] + jnp.cumsum(want) - 1
         take = want & (rows < n)
-        new = fresh(seeds, jnp.where(take, rows, 0))
-        slots = where_per_env(take, new.replace(state=None), s.replace(state=None))
-        slots = slots.replace(state=where_per_env(take, new.state, s.state, state_per_env))
-        slots = slots.replace(
-            seed_index=jnp.where(want & ~take, n, slots.seed_index),
-        )
         next_seed = jnp.minimum(carry.next_seed + jnp.sum(want), n)
-        return write_out(carry.replace(slots=slots, next_seed=next_seed))
+        idle = want & ~take
+        if not sliced:  # the whole batch resets; the slots that take a seed keep their slices
+            new = fresh(seeds, jnp.where(take, rows, 0))
+            slots = where_per_env(take, new.replace(state=None), s.replace(state=None))
+            slots = slots.replace(state=where_per_env(take, new.state, s.state, state_per_env))
+            slots = slots.replace(seed_index=jnp.where(idle, n, slots.seed_index))
+            carry, slots = write_out(carry.replace(slots=slots, next_seed=next_seed))
+            return carry.replace(slots=slots)
+        k = min(n_slots, RESET_SLICE)
+        # The slots that take a seed, in slot order, padded with n_slots (no slot) to a
+        # multiple of k; slice i of them resets in iteration i.
+        order = jnp.nonzero(take, size=-(-n_slots // k) * k, fill_value=n_slots)[0]
+
+        def reset_slice(i: jax.Array, c: RefillCarry) -> RefillCarry:
+            at = jax.lax.dynamic_slice(order, (i * k,), (k,))
+            used = at < n_slots
+            new = fresh(seeds, jnp.where(used, jnp.take(rows, at, mode="clip"), 0))
+            # Episodes that end at their reset are written now; padding writes nothing (row n).
+            new = new.replace(seed_index=jnp.where(used, new.seed_index, n))
+            c, new = write_out(c, new)
+
+            def put(x: jax.Array, y: jax.Array, batched: bool = True) -> jax.Array:
+                return x.at[at].set(y, mode="drop") if batched else x
+
+            slots = jax.tree.map(put, c.slots.replace(state=None), new.replace(state=None))
+            state = jax.tree.map(put, c.slots.state, new.state, state_per_env)
+            return c.replace(slots=slots.replace(state=state))
+
+        s = s.replace(seed_index=jnp.where(idle, n, s.seed_index))
+        carry = carry.replace(slots=s, next_seed=next_seed)
+        return jax.lax.fori_loop(0, (jnp.sum(take) + k - 1) // k, reset_slice, carry)
 
     def start(params: Any, seeds: jax.Array) -> RefillCarry:
         n = seeds.shape[0]
@@ -224,7 +264,8 @@ def make_refill_fns(
             next_seed=jnp.full((1,), n_slots, jnp.int32),
             steps=jnp.zeros((1,), jnp.int32),
         )
-        return write_out(carry)
+        carry, slots = write_out(carry)
+        return carry.replace(slots=slots)
 
     def step(params: Any, carry: RefillCarry, seeds: jax.Array) -> RefillCarry:
         s = carry.slots
@@ -234,9 +275,10 @@ def make_refill_fns(
         live = ~s.ended
         acc = accumulate(s.acc, new_state, new_pstate, live, s.t, policy, budget_ms)
         slots = s.replace(state=new_state, pstate=new_pstate, acc=acc, t=s.t + 1)
-        carry = write_out(carry.replace(slots=slots, steps=carry.steps + 1))
+        carry, slots = write_out(carry.replace(steps=carry.steps + 1), slots)
+        carry = carry.replace(slots=slots)
         due = (carry.steps[0] % refill_every == 0) & jnp.any(
-            carry.slots.ended & (carry.slots.seed_index < seeds.shape[0])
+            slots.ended & (slots.seed_index < seeds.shape[0])
         )
         return jax.lax.cond(due, refill, lambda c, _: c, carry, seeds)
 

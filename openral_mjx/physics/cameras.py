@@ -9,6 +9,28 @@ from openral_mjx.raycast import VISIBLE_GROUPS, DepthSpec, LaserSpec
 
 
 @dataclasses.dataclass(frozen=True)
+class RgbStyle:
+    """How RGB images are drawn (one style per render context: every RGB image of a scene).
+
+    Attributes:
+        textures: the materials' textures and the model's skybox behind everything (as
+            MuJoCo's renderer draws them); off, surfaces take their material's colour and
+            the background is black.
+        shadows: lights that cast shadows (`castshadow`) add nothing where they are blocked,
+            as in MuJoCo's renderer. Costs a ray per such light and pixel.
+        samples: sub-pixel samples per axis, averaged (anti-aliasing, as MuJoCo's multisampled
+            offscreen buffer smooths edges); costs `samples`**2 renders.
+    """
+
+    textures: bool = False
+    shadows: bool = False
+    samples: int = 1
+
+    def __post_init__(self) -> None:
+        check(self.samples >= 1, f"rgb samples={self.samples}: must be >= 1")
+
+
+@dataclasses.dataclass(frozen=True)
 class RgbSpec:
     """An RGB image of MJCF camera `camera`, width x height pixels, values in [0, 1].
 
@@ -21,6 +43,7 @@ class RgbSpec:
     height: int
     name: str | None = None
     groups: tuple[int, ...] = VISIBLE_GROUPS
+    style: RgbStyle = RgbStyle()
 
     def __post_init__(self) -> None:
         check(

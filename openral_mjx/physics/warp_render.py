@@ -14,7 +14,9 @@ RGB is lit by the model's lights and the headlight. The renderer reads each worl
 colours (`RENDER_FIELDS`: an env's fields of those names reach it as a batched model, so the
 `light` factor varies them per env); the headlight is baked into its kernel, the same in
 every world. Lights are placed in the data by MuJoCo's `mj_camlight`, which `mjx.step` runs and
-kinematics alone does not: `WarpCameras.place` puts them (and the cameras) for the first frame.
+kinematics alone does not: `WarpCameras.place` puts them (and the cameras, fixed to their body
+or tracking it) for the first frame. How RGB is drawn (textures and skybox, shadows,
+anti-aliasing) is the specs' `RgbStyle`, one per render context.
 """
 
 from __future__ import annotations
@@ -27,8 +29,9 @@ import jax.numpy as jnp
 import mujoco
 import numpy as np
 
+from openral_mjx.core.errors import ConfigError, unknown
 from openral_mjx.physics.base import camera_local
-from openral_mjx.physics.cameras import RgbSpec
+from openral_mjx.physics.cameras import RgbSpec, RgbStyle
 from openral_mjx.physics.mjx_backend import mjx
 from openral_mjx.raycast import DepthSpec
 from openral_mjx.raycast.geoms import mat_vec, quat_to_mat
@@ -51,14 +54,17 @@ class _Camera:
 def renderable(specs: list[DepthSpec | RgbSpec]) -> list[DepthSpec | RgbSpec]:
     """The specs one render context can serve: RGB images, and depth images at the camera's
     own intrinsics, full resolution (stride 1) and with no excluded bodies; one size per
-    camera and one set of geom groups (the first spec's), RGB images first. Depth images left
-    out are ray cast."""
+    camera, one set of geom groups (the first spec's) and one `RgbStyle` (the first RGB
+    image's), RGB images first. Depth images left out are ray cast."""
     sizes: dict[str, tuple[int | None, int | None]] = {}
     groups = None
     out = []
     ordered = [s for s in specs if isinstance(s, RgbSpec)]
+    style = ordered[0].style if ordered else None
     for s in ordered + [s for s in specs if not isinstance(s, RgbSpec)]:
         if isinstance(s, DepthSpec) and (s.intrinsics is not None or s.exclude or s.stride != 1):
+            continue
+        if isinstance(s, RgbSpec) and s.style != style:
             continue
         size = (s.width, s.height)
         if sizes.setdefault(s.camera, size) != size or (groups or s.groups) != s.groups:
@@ -66,6 +72,20 @@ def renderable(specs: list[DepthSpec | RgbSpec]) -> list[DepthSpec | RgbSpec]:
         groups = groups or s.groups
         out.append(s)
     return out
+
+
+def style_options(model: mujoco.MjModel, style: RgbStyle) -> dict[str, Any]:
+    """MuJoCo-Warp render-context settings drawing `style`: textures (and the skybox, where
+    the model has one), shadows that block their light entirely (MuJoCo's renderer keeps
+    none of a shadowed light; MuJoCo-Warp keeps 0.3 by default), sub-pixel samples."""
+    skybox = int(mujoco.mjtTexture.mjTEXTURE_SKYBOX)
+    return {
+        "use_textures": style.textures,
+        "render_skybox": style.textures and bool(np.any(model.tex_type == skybox)),
+        "use_shadows": style.shadows,
+        "shadow_light_fraction": 0.0,
+        "samples_per_pixel": style.samples,
+    }
 
 
 # MuJoCo's `mjtCamLight` modes, as the ints `MjModel.light_mode` holds.
@@ -116,6 +136,39 @@ def light_poses(
     return jnp.stack(positions), jnp.stack(directions)
 
 
+def camera_id(model: mujoco.MjModel, name: str) -> int:
+    """The id of camera `name`, which MuJoCo-Warp's renderer can place each frame here: a
+    perspective camera fixed to its body or tracking it (`mj_camlight`'s `fixed`, `track`,
+    `trackcom` modes); a typed error naming the valid cameras otherwise."""
+    c = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_CAMERA, name)
+    if c < 0:
+        raise unknown("camera", name, [model.camera(i).name for i in range(model.ncam)])
+    if int(model.cam_mode[c]) not in (_FIXED, _TRACK, _TRACKCOM):
+        raise ConfigError(
+            f"rendered camera {name!r}: mode {mujoco.mjtCamLight(int(model.cam_mode[c])).name} "
+            "is not supported; valid: fixed, track, trackcom"
+        )
+    if int(model.cam_projection[c]) != int(mujoco.mjtProjection.mjPROJ_PERSPECTIVE):
+        raise ConfigError(f"rendered camera {name!r} must be a perspective camera")
+    return c
+
+
+def tracked_camera_pose(
+    model: mujoco.MjModel, cam: int, xpos: jax.Array, com: jax.Array | None
+) -> tuple[jax.Array, jax.Array]:
+    """World position (3,) and rotation (3, 3) of a `track`/`trackcom` camera, as MuJoCo's
+    `mj_camlight` puts it: its body's position (`track`) or subtree centre of mass
+    (`trackcom`, `com` from `_subtree_com`) plus the offset it had at `qpos0`, with the world
+    orientation it had there (it follows the body, never turns with it)."""
+    b = int(model.cam_bodyid[cam])
+    if int(model.cam_mode[cam]) == _TRACK:
+        pos = xpos[b] + jnp.asarray(model.cam_pos0[cam], jnp.float32)
+    else:
+        assert com is not None
+        pos = com[b] + jnp.asarray(model.cam_poscom0[cam], jnp.float32)
+    return pos, jnp.asarray(model.cam_mat0[cam].reshape(3, 3), jnp.float32)
+
+
 class WarpCameras:
     """Renders the images of `specs` (all servable by one context, see `renderable`)."""
 
@@ -128,9 +181,11 @@ class WarpCameras:
     ) -> None:
         self.mj_model, self.mx, self.devices = mj_model, mx, devices
         self.groups = specs[0].groups
+        rgb = [s for s in specs if isinstance(s, RgbSpec)]
+        self.style = rgb[0].style if rgb else RgbStyle()
         cams: dict[int, _Camera] = {}
         for s in specs:
-            cid = mj_model.camera(s.camera).id
+            cid = camera_id(mj_model, s.camera)
             res = mj_model.cam_resolution[cid]
             w, h = int(s.width or res[0]), int(s.height or res[1])
             c = cams.get(cid, _Camera(cid, w, h, (), ()))
@@ -140,8 +195,13 @@ class WarpCameras:
                 c = dataclasses.replace(c, depth=(*c.depth, s))
             cams[cid] = c
         self.cameras = list(cams.values())
-        self._mounts: dict[int, Mount] = {
-            c.cam_id: camera(mj_model, mj_model.camera(c.cam_id).name, "rendered camera")[1]
+        # Fixed cameras hang from their body (`Mount`); tracking ones are placed per frame.
+        self._mounts: dict[int, Mount | None] = {
+            c.cam_id: (
+                camera(mj_model, mj_model.camera(c.cam_id).name, "rendered camera")[1]
+                if int(mj_model.cam_mode[c.cam_id]) == _FIXED
+                else None
+            )
             for c in self.cameras
         }
         self._contexts: dict[int, Any] = {}
@@ -159,7 +219,7 @@ class WarpCameras:
                 render_rgb=[bool(c.rgb) for c in self.cameras],
                 render_depth=[bool(c.depth) for c in self.cameras],
                 enabled_geom_groups=list(self.groups),
-                use_textures=False,
+                **style_options(self.mj_model, self.style),
             )
         return self._contexts[nworld]
 
@@ -170,8 +230,14 @@ class WarpCameras:
         `cam_pos`/`cam_quat` fields put them."""
         ids = jnp.asarray(list(self._mounts), jnp.int32)
         poses = []
+        com = None
+        if any(int(self.mj_model.cam_mode[c]) == _TRACKCOM for c in self._mounts):
+            com = _subtree_com(self.mj_model, d.xipos)
         for cam, mount in self._mounts.items():
-            pos, rot = mount.pose(d.xpos, d.xquat)
+            if mount is not None:
+                pos, rot = mount.pose(d.xpos, d.xquat)
+            else:
+                pos, rot = tracked_camera_pose(self.mj_model, cam, d.xpos, com)
             local = camera_local(fields, cam, self.mj_model)
             if local is not None:
                 nominal = (self.mj_model.cam_pos[cam], self.mj_model.cam_quat[cam])

@@ -79,6 +79,9 @@ def _mirror_expert(scene: Any) -> Policy:
             f"--scene {MIRROR}: drop --opt goal_observable=false"
         )
     expert = MirrorExpert(scene.task)
+    # MetaWorld's 39 floats; camera images (`obs_rgb_cameras`) follow them.
+    start, size = scene.obs_layout["goal"]
+    n_state = start + size
 
     def init(key, obs_spec):
         del key, obs_spec
@@ -89,7 +92,7 @@ def _mirror_expert(scene: Any) -> Policy:
         action = jax.pure_callback(
             expert,
             jax.ShapeDtypeStruct((4,), jnp.float32),
-            obs,
+            obs[..., :n_state],
             vmap_method="broadcast_all",
         )
         return action, pstate

@@ -19,7 +19,7 @@ import mujoco
 
 from openral_mjx.core.options import check
 from openral_mjx.physics import Quantities
-from openral_mjx.physics.cameras import RgbSpec, SensorSpec, sensor_key
+from openral_mjx.physics.cameras import RgbSpec, RgbStyle, SensorSpec, sensor_key
 from openral_mjx.raycast import DepthSpec, LaserSpec
 
 Size = tuple[int, int]
@@ -36,6 +36,8 @@ class SensorObsOptions:
         obs_depth_range: (min, max) depth measured (m); pixels outside read the max.
         obs_rgb_cameras: cameras whose RGB images join as `rgb_CAMERA` (`warp` only).
         obs_rgb_size: their (width, height).
+        obs_rgb_textures, obs_rgb_shadows, obs_rgb_samples: how they are drawn (`RgbStyle`):
+            textures and skybox, shadows, sub-pixel samples per axis (anti-aliasing).
         obs_laser_frame: body or site carrying a 2-D laser scanner (`scan` slice), e.g. the
             base of a mobile robot; the robot's own bodies are excluded from its view.
         obs_laser_beams, obs_laser_range, obs_laser_height: beams per turn, max range (m) and
@@ -47,6 +49,9 @@ class SensorObsOptions:
     obs_depth_range: tuple[float, float] = (0.0, 3.0)
     obs_rgb_cameras: tuple[str, ...] = ()
     obs_rgb_size: Size = (64, 64)
+    obs_rgb_textures: bool = False
+    obs_rgb_shadows: bool = False
+    obs_rgb_samples: int = 1
     obs_laser_frame: str | None = None
     obs_laser_beams: int = 360
     obs_laser_range: float = 12.0
@@ -58,6 +63,7 @@ class SensorObsOptions:
             check(min(size) >= 1, f"option {name}={list(size)}: must be >= 1")
         lo, hi = self.obs_depth_range
         check(0 <= lo < hi, f"option obs_depth_range={[lo, hi]}: need 0 <= min < max")
+        check(self.obs_rgb_samples >= 1, f"option obs_rgb_samples={self.obs_rgb_samples}: >= 1")
         check(self.obs_laser_beams >= 1, f"option obs_laser_beams={self.obs_laser_beams}: >= 1")
         check(self.obs_laser_range > 0, f"option obs_laser_range={self.obs_laser_range}: > 0")
         for name in ("obs_depth_cameras", "obs_rgb_cameras"):
@@ -73,7 +79,8 @@ class SensorObsOptions:
             for c in self.obs_depth_cameras
         ]
         rw, rh = self.obs_rgb_size
-        specs += [RgbSpec(camera=c, width=rw, height=rh) for c in self.obs_rgb_cameras]
+        style = RgbStyle(self.obs_rgb_textures, self.obs_rgb_shadows, self.obs_rgb_samples)
+        specs += [RgbSpec(camera=c, width=rw, height=rh, style=style) for c in self.obs_rgb_cameras]
         if self.obs_laser_frame is not None:
             specs.append(
                 LaserSpec(

@@ -88,11 +88,23 @@ def gl_backend() -> str:
 class FrameRenderer:
     """Offscreen RGB frames of a model's named cameras through a `gl_backend()` context.
 
-    Shadows and reflections are off: in software GL they cost 10-30x the rest of a frame.
-    `model` is modified (offscreen buffer size), so pass a copy you own.
+    Shadows and reflections are off unless asked for (MuJoCo's defaults, as
+    `mujoco.Renderer` draws): in software GL they cost 10-30x the rest of a frame. `sites`
+    False hides every site (drawn by default). `model` is modified (offscreen buffer size),
+    so pass a copy you own.
     """
 
-    def __init__(self, model: mujoco.MjModel, width: int, height: int, gl: str) -> None:
+    def __init__(
+        self,
+        model: mujoco.MjModel,
+        width: int,
+        height: int,
+        gl: str,
+        *,
+        shadows: bool = False,
+        reflections: bool = False,
+        sites: bool = True,
+    ) -> None:
         self.model = model
         model.vis.global_.offwidth = max(model.vis.global_.offwidth, width)
         model.vis.global_.offheight = max(model.vis.global_.offheight, height)
@@ -101,9 +113,11 @@ class FrameRenderer:
         self._mjr = mujoco.MjrContext(model, mujoco.mjtFontScale.mjFONTSCALE_150)
         mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN, self._mjr)
         self._scene = mujoco.MjvScene(model, maxgeom=10_000)
-        self._scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = False
-        self._scene.flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = False
+        self._scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = shadows
+        self._scene.flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = reflections
         self._option = mujoco.MjvOption()
+        if not sites:
+            self._option.sitegroup[:] = 0
         self._camera = mujoco.MjvCamera()
         self._camera.type = mujoco.mjtCamera.mjCAMERA_FIXED
         self._rect = mujoco.MjrRect(0, 0, width, height)

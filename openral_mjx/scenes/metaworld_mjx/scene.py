@@ -17,7 +17,11 @@ two on the same initial states. What the scene reproduces of MetaWorld's `Sawyer
   ``(a[3], -a[3])``; 5 physics steps of 2.5 ms per control step.
 - **Observation**: MetaWorld's 39 floats: hand position, gripper opening, the objects' poses
   (padded to 14), the previous step's 18, and the goal (zeros when not observable), clipped to
-  MetaWorld's observation box after every step (not at reset, as MetaWorld).
+  MetaWorld's observation box after every step (not at reset, as MetaWorld). On `warp`, RGB
+  images of MetaWorld's cameras may follow (`obs_rgb_cameras`, see `sensor_obs`), rendered by
+  MuJoCo-Warp from the poses MetaWorld's renderer would draw after the step (those of the last
+  physics step's start: MuJoCo's `mj_step` leaves them so, and MetaWorld renders without a
+  further `mj_forward`).
 - **Success**: the task's predicate, which ends the episode; MetaWorld's limit is 500 steps.
 """
 
@@ -30,6 +34,7 @@ import jax.numpy as jnp
 import mujoco
 import numpy as np
 
+from openral_mjx.core.errors import unknown
 from openral_mjx.physics import (
     PhysicsSettings,
     PhysicsState,
@@ -50,6 +55,12 @@ from openral_mjx.scenes.metaworld_mjx import task as mw
 from openral_mjx.scenes.metaworld_mjx.assets import load_spec
 from openral_mjx.scenes.metaworld_mjx.options import MetaWorldMjxOptions
 from openral_mjx.scenes.metaworld_mjx.tasks import TASKS, check_reward
+from openral_mjx.scenes.sensor_obs import (
+    observed_cameras,
+    rendered_lights,
+    sensor_obs,
+    sensor_shapes,
+)
 
 N_DRAWS = 32  # candidate random vectors per reset; P(no draw accepted) is negligible
 OBS_SIZES = {"hand": 3, "gripper": 1, "objects": 14, "prev": 18, "goal": 3}
@@ -129,9 +140,19 @@ class MetaWorldMjx(Scene):
         bodies = tuple(dict.fromkeys((*mw.COMMON_BODIES, *t.bodies, *t.moved_bodies)))
         sites = tuple(dict.fromkeys((*mw.COMMON_SITES, *t.sites)))
         geoms = tuple(dict.fromkeys(t.geoms))
+        cameras = [c.name for c in self.spec.cameras]
+        for name in o.obs_rgb_cameras:
+            if name not in cameras:
+                raise unknown("MetaWorld camera", name, cameras)
+        sensors = o.sensor_specs()
         self.backend = make_backend(
-            backend, self.spec, QuantitySpec(bodies, sites, geoms=geoms), mw.FRAME_SKIP, settings
+            backend,
+            self.spec,
+            QuantitySpec(bodies, sites, geoms=geoms, sensors=sensors),
+            mw.FRAME_SKIP,
+            settings,
         )
+        self.sensor_shapes = sensor_shapes(sensors)
         m = self.mj_model  # the backend's compiled copy of the spec
         self.facts, rest = model_facts(m, t)
         self._names = (
@@ -150,7 +171,10 @@ class MetaWorldMjx(Scene):
         low = t.mocap_low if t.mocap_low is not None else t.hand_low
         high = t.mocap_high if t.mocap_high is not None else t.hand_high
         self._mocap_box = (jnp.asarray(low, jnp.float32), jnp.asarray(high, jnp.float32))
-        self._layout = obs_slices(OBS_SIZES)
+        images = {k: int(np.prod(shape)) for k, shape in self.sensor_shapes.items()}
+        self._layout = obs_slices({**OBS_SIZES, **images})
+        self._cameras = observed_cameras(sensors, m)
+        self._lights = rendered_lights(sensors, m)
         obs_low = np.full(39, -np.inf, np.float32)
         obs_high = np.full(39, np.inf, np.float32)
         for start in (0, 18):
@@ -198,6 +222,8 @@ class MetaWorldMjx(Scene):
             object_bodies=objects,
             contact_geoms=contact,
             object_obs=("objects",),
+            cameras=self._cameras,
+            lights=self._lights,
             hold=lambda state: still,
         )
 
@@ -230,7 +256,7 @@ class MetaWorldMjx(Scene):
         view = self._view(physics)
         episode = t.episode(self.facts, vec, view)
         curr = self._current(view)
-        obs = jnp.concatenate([curr, curr, self._goal(episode)])
+        obs = jnp.concatenate([curr, curr, self._goal(episode), *self._images(physics)])
         info = {
             "vec": vec,
             "episode": episode,
@@ -297,6 +323,7 @@ class MetaWorldMjx(Scene):
         diverged = ~physics.quantities.ok
         success = self.logic.success(obs, view, episode) & ~diverged
         reward = jnp.where(diverged, 0.0, self.logic.reward(obs, view, episode, a))
+        obs = jnp.concatenate([obs, *self._images(physics)])
         return state.replace(
             physics=physics,
             obs=jnp.where(diverged, 0.0, obs).astype(jnp.float32),
@@ -317,6 +344,10 @@ class MetaWorldMjx(Scene):
         objects = _interleave(*self.logic.objects(view))
         objects = jnp.pad(objects, (0, mw.OBS_OBJ_MAX_LEN - objects.shape[0]))
         return jnp.concatenate([view.hand, jnp.clip(gap / 0.1, 0.0, 1.0)[None], objects])
+
+    def _images(self, physics: PhysicsState) -> list[jax.Array]:
+        """The observed camera images, flattened (none unless `obs_rgb_cameras`)."""
+        return sensor_obs(physics.quantities, self.sensor_shapes)
 
     def _goal(self, episode: dict[str, jax.Array]) -> jax.Array:
         if not self.options.goal_observable:

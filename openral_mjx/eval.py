@@ -33,6 +33,7 @@ from openral_mjx.evaluation.suite import evaluate_suite, format_tasks
 from openral_mjx.evaluation.sweep import parse_sweep, run_sweep
 from openral_mjx.physics import BACKEND_NAMES
 from openral_mjx.policies import POLICIES
+from openral_mjx.policies.lerobot import implied_camera_options
 from openral_mjx.report import EvalReport, load_report, save_report
 from openral_mjx.report.sweep import SweepReport, save_sweep
 from openral_mjx.robots import ROBOTS
@@ -381,9 +382,11 @@ def build(plan: EvalPlan, owned: contextlib.ExitStack) -> Built:
         enable_compilation_cache()
     if args.suite is not None:
         return Built()
+    # a lerobot policy's cameras, unless --opt names them (run_evaluation does the same)
+    implied = implied_camera_options(args.policy, SCENES.get(args.scene).options_cls, plan.options)
     scene = build_scene(
         args.scene,
-        plan.options,
+        {**implied, **(plan.options or {})},
         backend=plan.backend,
         n_envs=args.n_envs,
         threads=args.threads,

@@ -11,6 +11,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from worker_envs import require_worker_envs
 
 from openral_mjx.core.errors import ConfigError
 from openral_mjx.evaluation import evaluate
@@ -24,12 +25,7 @@ from openral_mjx.scenes import make_scene, scene_options, scene_suite
 al = importlib.import_module("openral_mjx.scenes.aloha")
 
 ENV = "gym-envs"
-if not envs.is_ready(ENV):
-    if os.environ.get("CI"):
-        raise RuntimeError(f"CI must create the worker environment: {envs.create_command(ENV)}")
-    pytest.skip(
-        f"worker environment not created ({envs.create_command(ENV)})", allow_module_level=True
-    )
+require_worker_envs(ENV)
 
 SMALL = {"image_height": 48, "image_width": 64}
 GL = {"MUJOCO_GL": "egl", "PYOPENGL_PLATFORM": "egl"}

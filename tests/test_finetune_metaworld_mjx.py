@@ -7,7 +7,6 @@ the `metaworld` worker environment: without it these tests are skipped (CI creat
 from __future__ import annotations
 
 import json
-import os
 import sys
 import types
 
@@ -15,21 +14,16 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from worker_envs import require_worker_envs
 
 from openral_mjx import finetune
 from openral_mjx.evaluation import metaworld_agreement as agreement
-from openral_mjx.host import envs
 from openral_mjx.physics import PhysicsSettings
 from openral_mjx.scenes import make_scene
 from openral_mjx.scenes.metaworld_mjx.tasks import TASKS, rewarded_tasks
 
 ENV = "metaworld"
-if not envs.is_ready(ENV):
-    if os.environ.get("CI"):
-        raise RuntimeError(f"CI must create the worker environment: {envs.create_command(ENV)}")
-    pytest.skip(
-        f"worker environment not created ({envs.create_command(ENV)})", allow_module_level=True
-    )
+require_worker_envs(ENV)
 
 SCENE = ["--scene", "metaworld_mjx", "--backend", "c", "--threads", "2", "--no-compile-cache"]
 

@@ -8,19 +8,13 @@ import os
 import subprocess
 
 import pytest
+from worker_envs import require_worker_envs
 
 from openral_mjx.evaluation import evaluate
 from openral_mjx.host import envs
 from openral_mjx.host.pool import _shim_dir
 
-for ENV in ("gym-envs", "lerobot-libero"):
-    if not envs.is_ready(ENV):
-        if os.environ.get("CI"):
-            raise RuntimeError(f"CI must create the worker environment: {envs.create_command(ENV)}")
-        pytest.skip(
-            f"worker environment not created ({envs.create_command(ENV)})",
-            allow_module_level=True,
-        )
+require_worker_envs("gym-envs", "lerobot-libero")
 
 # name -> (kind, input features, action size)
 POLICIES = {

@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from worker_envs import require_worker_envs
 
 from openral_mjx.core.errors import ConfigError
 from openral_mjx.host import envs
@@ -20,12 +21,7 @@ from openral_mjx.policies import make_policy
 from openral_mjx.runner import resolve_batching, run_seeds
 
 ENV = "lerobot-libero"
-if not envs.is_ready(ENV):
-    if os.environ.get("CI"):
-        raise RuntimeError(f"CI must create the worker environment: {envs.create_command(ENV)}")
-    pytest.skip(
-        f"worker environment not created ({envs.create_command(ENV)})", allow_module_level=True
-    )
+require_worker_envs(ENV)
 
 CHECK = Path(__file__).parent / "data" / "lerobot_chunks_check.py"
 

@@ -4,12 +4,12 @@ are skipped until `python -m openral_mjx.host.envs create maniskill` has run. A 
 reset imports torch and ManiSkill (~10-20 s here), so the fast tests share one worker."""
 
 import importlib
-import os
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from worker_envs import require_worker_envs
 
 from openral_mjx.core.errors import ConfigError
 from openral_mjx.evaluation import evaluate
@@ -23,12 +23,7 @@ from openral_mjx.scenes import make_scene, scene_options
 ms = importlib.import_module("openral_mjx.scenes.maniskill")
 
 ENV = "maniskill"
-if not envs.is_ready(ENV):
-    if os.environ.get("CI"):
-        raise RuntimeError(f"CI must create the worker environment: {envs.create_command(ENV)}")
-    pytest.skip(
-        f"worker environment not created ({envs.create_command(ENV)})", allow_module_level=True
-    )
+require_worker_envs(ENV)
 
 
 @pytest.fixture(scope="module")

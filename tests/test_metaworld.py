@@ -12,6 +12,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from worker_envs import require_worker_envs
 
 from openral_mjx.core.errors import ConfigError
 from openral_mjx.eval import _listing
@@ -28,12 +29,7 @@ from openral_mjx.scenes import make_scene, scene_options, scene_suite
 mw = importlib.import_module("openral_mjx.scenes.metaworld")
 
 ENV = "metaworld"
-if not envs.is_ready(ENV):
-    if os.environ.get("CI"):
-        raise RuntimeError(f"CI must create the worker environment: {envs.create_command(ENV)}")
-    pytest.skip(
-        f"worker environment not created ({envs.create_command(ENV)})", allow_module_level=True
-    )
+require_worker_envs(ENV)
 
 OBS = {"obs": ((39,), "float32"), "agent_pos": ((4,), "float32")}
 

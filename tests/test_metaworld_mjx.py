@@ -6,27 +6,20 @@ tests are skipped until `python -m openral_mjx.host.envs create metaworld` has r
 
 from __future__ import annotations
 
-import os
-
 import jax
 import numpy as np
 import pytest
+from worker_envs import require_worker_envs
 
 from openral_mjx.core.errors import ConfigError
 from openral_mjx.evaluation import metaworld_agreement as agreement
-from openral_mjx.host import envs
 from openral_mjx.physics import PhysicsSettings
 from openral_mjx.scenes import make_scene, scene_suite
 from openral_mjx.scenes.metaworld import TASKS as METAWORLD_TASKS
 from openral_mjx.scenes.metaworld_mjx.tasks import TASKS
 
 ENV = "metaworld"
-if not envs.is_ready(ENV):
-    if os.environ.get("CI"):
-        raise RuntimeError(f"CI must create the worker environment: {envs.create_command(ENV)}")
-    pytest.skip(
-        f"worker environment not created ({envs.create_command(ENV)})", allow_module_level=True
-    )
+require_worker_envs(ENV)
 
 # One task per kind of reset: a free object (push), a fixed body moved per episode with a
 # target read from the placed model (button-press-topdown, if ported), the hand alone (reach).

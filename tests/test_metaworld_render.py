@@ -9,17 +9,16 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from worker_envs import require_worker_envs
 
 from openral_mjx.core.errors import ConfigError
 from openral_mjx.evaluation import metaworld_render as render
-from openral_mjx.host import envs
 from openral_mjx.physics import PhysicsSettings
 from openral_mjx.runner.episode import seed_keys
 from openral_mjx.scenes import make_scene
 from openral_mjx.viz.gl import GLUnavailable, gl_backend
 
-if not envs.is_ready("metaworld"):
-    pytest.skip("worker environment 'metaworld' not created", allow_module_level=True)
+require_worker_envs("metaworld")
 
 CAMERAS = "topview, corner, corner2, corner3, corner4, behindGripper, gripperPOV"
 # `corner` at MetaWorld's 480 x 480: 86.1% of pixels within 8/255 of MuJoCo's render on both

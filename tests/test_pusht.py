@@ -3,12 +3,12 @@ that environment first; elsewhere these tests are skipped until
 `python -m openral_mjx.host.envs create gym-envs` has run."""
 
 import importlib
-import os
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from worker_envs import require_worker_envs
 
 from openral_mjx.core.errors import ConfigError
 from openral_mjx.evaluation import evaluate
@@ -23,12 +23,7 @@ from openral_mjx.scenes import make_scene, scene_options
 pt = importlib.import_module("openral_mjx.scenes.pusht")
 
 ENV = "gym-envs"
-if not envs.is_ready(ENV):
-    if os.environ.get("CI"):
-        raise RuntimeError(f"CI must create the worker environment: {envs.create_command(ENV)}")
-    pytest.skip(
-        f"worker environment not created ({envs.create_command(ENV)})", allow_module_level=True
-    )
+require_worker_envs(ENV)
 
 OBS = {"pixels": ((96, 96, 3), "uint8"), "agent_pos": ((2,), "float32")}
 

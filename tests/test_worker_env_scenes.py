@@ -9,6 +9,7 @@ import sys
 
 import numpy as np
 import pytest
+from worker_envs import require_worker_envs
 
 from openral_mjx.evaluation import evaluate
 from openral_mjx.host import envs
@@ -17,12 +18,7 @@ from openral_mjx.host.pool import Worker, _shim_dir
 from openral_mjx.report import load_report
 
 ENV = "lerobot-libero"
-if not envs.is_ready(ENV):
-    if os.environ.get("CI"):
-        raise RuntimeError(f"CI must create the worker environment: {envs.create_command(ENV)}")
-    pytest.skip(
-        f"worker environment not created ({envs.create_command(ENV)})", allow_module_level=True
-    )
+require_worker_envs(ENV)
 
 IMAGE = 64  # small renders keep LIBERO fast on a CPU
 LIBERO_OBS = {

@@ -13,7 +13,7 @@ policy on several tasks).
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import jax
@@ -38,3 +38,11 @@ class Policy:
     # Every env of a batch must start its episode at the same step (a policy that keeps one
     # observation history for the whole batch): such a run uses fixed chunks, never refill.
     aligned_episodes: bool = False
+    # The policy keeps host-side state for the batch (a torch module behind a callback, a
+    # policy server's pipe): the runner gives it one device's batch, never shards running
+    # concurrently on several devices.
+    one_device: bool = False
+
+    def devices(self, devices: Sequence[jax.Device]) -> tuple[jax.Device, ...]:
+        """The devices a run of this policy uses, of those offered."""
+        return tuple(devices)[:1] if self.one_device else tuple(devices)

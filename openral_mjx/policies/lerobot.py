@@ -309,6 +309,7 @@ def lerobot_policy(scene: Any, arg: str | None) -> Policy:
         close=client.close,
         instruct=client.instruct,
         aligned_episodes=not described.get("per_env", False),
+        one_device=True,  # one server, one pipe: no concurrent device shards
     )
 
 

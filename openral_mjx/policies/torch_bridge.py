@@ -159,6 +159,7 @@ def bridge_policy(
         instruct=instruct,
         close=close,
         aligned_episodes=aligned_episodes,
+        one_device=True,  # one module, one latency clock: no concurrent device shards
     )
 
 

@@ -131,7 +131,7 @@ class EpisodeRunner:
     ) -> None:
         check_counts(n_envs, 1, max_steps)
         self.scene = scene
-        self.layout = Layout(tuple(devices or scene.backend.devices()))
+        self.layout = Layout(policy.devices(devices or scene.backend.devices()))
         limit = scene.backend.max_batch
         self.per_device = envs_per_device(n_envs, len(self.layout.devices), limit)
         if limit is not None and self.per_device > limit:

@@ -37,7 +37,7 @@ def trace_seeds(
     order given) and their trace (numpy leaves `(len(seeds), max_steps + 1, ...)`).
     """
     seeds = [int(s) for s in seeds]
-    layout = Layout(tuple(devices or scene.backend.devices()))
+    layout = Layout(policy.devices(devices or scene.backend.devices()))
     n_dev = len(layout.devices)
     groups: dict[bytes, tuple[np.ndarray, list[int]]] = {}
     for i, seed in enumerate(seeds):

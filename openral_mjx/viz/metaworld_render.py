@@ -18,7 +18,7 @@ camera of MetaWorld's model:
 Per camera: the share of pixels whose every channel is within 8/255 (`within`), and the
 mean absolute error over pixels and channels, in 1/255.
 
-``python -m openral_mjx.evaluation.metaworld_render --tasks push-v3 door-open-v3
+``python -m openral_mjx.viz.metaworld_render --tasks push-v3 door-open-v3
 pick-place-v3`` prints the table (markdown) and writes it as JSON with ``--out``.
 """
 

@@ -39,7 +39,7 @@ import numpy as np
 
 from openral_mjx.evaluation import build_scene, run_evaluation
 from openral_mjx.host.pool import Worker, host_callback
-from openral_mjx.policies.base import Policy
+from openral_mjx.policies.base import Policy, host_step_policy, pure_step_call
 from openral_mjx.policies.mlp import MlpConfig, init_params, mlp_policy
 from openral_mjx.policies.torch_policy import torch_policy
 
@@ -104,11 +104,15 @@ def server_policy(scene, python: str, device: str, tmp: Path) -> Policy:
     )
 
     @host_callback
-    def call(obs, t):
+    def call(arrays, t):
         lead = np.shape(t)
         start = time.perf_counter()
         action = worker.call(
-            {"op": "call", "method": "act", "kwargs": {"obs": np.asarray(obs).reshape(-1, size)}},
+            {
+                "op": "call",
+                "method": "act",
+                "kwargs": {"obs": np.asarray(arrays["obs"]).reshape(-1, size)},
+            },
             300.0,
         )
         ms = 1000 * (time.perf_counter() - start)
@@ -117,24 +121,12 @@ def server_policy(scene, python: str, device: str, tmp: Path) -> Policy:
             np.full(lead, ms, np.float32),
         )
 
-    sd = jax.ShapeDtypeStruct
-
-    def init(key, obs_spec):
-        del key, obs_spec
-        return None, {"t": jnp.zeros((), jnp.int32), "ms": jnp.zeros((), jnp.float32)}
-
-    def act(params, pstate, obs, key):
-        del params, key
-        action, ms = jax.pure_callback(
-            call,
-            (sd((action_size,), jnp.float32), sd((), jnp.float32)),
-            obs,
-            pstate["t"],
-            vmap_method="broadcast_all",
-        )
-        return action, {"t": pstate["t"] + 1, "ms": ms}
-
-    return Policy("torch-mlp-server", init, act, latency_ms=lambda s: s["ms"], close=worker.close)
+    return host_step_policy(
+        "torch-mlp-server",
+        pure_step_call(call, action_size),
+        lambda obs: {"obs": obs},
+        close=worker.close,
+    )
 
 
 def self_check(torch: Any) -> dict:

@@ -17,6 +17,7 @@ from collections.abc import Callable, Sequence
 from typing import Any
 
 import jax
+import jax.numpy as jnp
 
 InitFn = Callable[[jax.Array, jax.ShapeDtypeStruct], tuple[Any, Any]]
 ActFn = Callable[[Any, Any, jax.Array, jax.Array], tuple[jax.Array, Any]]
@@ -46,3 +47,43 @@ class Policy:
     def devices(self, devices: Sequence[jax.Device]) -> tuple[jax.Device, ...]:
         """The devices a run of this policy uses, of those offered."""
         return tuple(devices)[:1] if self.one_device else tuple(devices)
+
+
+# call(arrays, t) -> (action, ms): one env's named observation arrays and its control step in
+# the episode, to its action and the step's policy latency; a host callback, vmapped over the
+# batch as one call ("broadcast_all").
+StepCall = Callable[[dict[str, jax.Array], jax.Array], tuple[jax.Array, jax.Array]]
+
+
+def host_step_policy(
+    name: str, call: StepCall, views: Callable[[Any], dict[str, jax.Array]], **fields: Any
+) -> Policy:
+    """A policy computed outside JAX, one `call` per control step: `views(obs)` names what it
+    reads (pure JAX, traced into the episode); its state counts the episode's steps (`t`, so
+    the host side sees which envs start an episode) and keeps the step's latency (`ms`).
+    `fields`: the other `Policy` fields (`close`, `instruct`, ...)."""
+
+    def init(key, obs_spec):
+        del key, obs_spec
+        return None, {"t": jnp.zeros((), jnp.int32), "ms": jnp.zeros((), jnp.float32)}
+
+    def act(params, pstate, obs, key):
+        del params, key
+        action, ms = call(views(obs), pstate["t"])
+        return action, {"t": pstate["t"] + 1, "ms": ms}
+
+    return Policy(name, init, act, latency_ms=lambda s: s["ms"], **fields)
+
+
+def pure_step_call(fn: Callable[..., Any], action_size: int) -> StepCall:
+    """`StepCall` through `jax.pure_callback`: `fn(arrays, t)` gets the batch's host arrays
+    and returns numpy actions (batch..., action_size) and latencies (batch...)."""
+    specs = (
+        jax.ShapeDtypeStruct((action_size,), jnp.float32),
+        jax.ShapeDtypeStruct((), jnp.float32),
+    )
+
+    def call(arrays: dict[str, jax.Array], t: jax.Array) -> tuple[jax.Array, jax.Array]:
+        return jax.pure_callback(fn, specs, arrays, t, vmap_method="broadcast_all")
+
+    return call

@@ -39,7 +39,7 @@ import importlib.util
 import json
 import os
 import time
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -51,7 +51,7 @@ import yaml
 from openral_mjx.core.errors import ConfigError
 from openral_mjx.host.envs import ensure_env
 from openral_mjx.host.pool import RemoteError, Worker, WorkerFailure, host_callback
-from openral_mjx.policies.base import Policy
+from openral_mjx.policies.base import Policy, host_step_policy, pure_step_call
 from openral_mjx.policies.torch_bridge import (
     TorchBridge,
     bridge_policy,
@@ -140,6 +140,13 @@ def split_flat(scene: Any, obs: jax.Array) -> dict[str, jax.Array]:
         a, n = layout[k]
         out[k] = obs[a : a + n].reshape(shape)
     return out
+
+
+def observation_views(scene: Any) -> Callable[[Any], dict[str, jax.Array]]:
+    """One env's observation -> `scene_arrays`' named arrays (pure JAX, in the episode)."""
+    if isinstance(scene.observation_spec, Mapping):
+        return dict
+    return lambda obs: split_flat(scene, obs)
 
 
 def key_map(
@@ -281,31 +288,17 @@ def lerobot_policy(scene: Any, arg: str | None) -> Policy:
         return _in_process(scene, arg, path, keys, action_size)
     client = LerobotClient(path, keys, action_size, scene.instruction)
     described = client.start()
-    flat = not isinstance(scene.observation_spec, Mapping)
-    sd = jax.ShapeDtypeStruct
+    views = observation_views(scene)
+    needed = sorted(set(keys.values()))
 
-    def init(key, obs_spec):
-        del key, obs_spec
-        return None, {"t": jnp.zeros((), jnp.int32), "ms": jnp.zeros((), jnp.float32)}
+    def named(obs: Any) -> dict[str, jax.Array]:
+        arrays = views(obs)
+        return {k: arrays[k] for k in needed}
 
-    def act(params, pstate, obs, key):
-        del params, key
-        arrays = split_flat(scene, obs) if flat else obs
-        needed = {k: arrays[k] for k in set(keys.values())}
-        action, ms = jax.pure_callback(
-            client,
-            (sd((action_size,), jnp.float32), sd((), jnp.float32)),
-            needed,
-            pstate["t"],
-            vmap_method="broadcast_all",
-        )
-        return action, {"t": pstate["t"] + 1, "ms": ms}
-
-    return Policy(
+    return host_step_policy(
         f"lerobot:{arg}",
-        init,
-        act,
-        latency_ms=lambda s: s["ms"],
+        pure_step_call(client, action_size),
+        named,
         close=client.close,
         instruct=client.instruct,
         aligned_episodes=not described.get("per_env", False),
@@ -359,11 +352,10 @@ def _in_process(scene: Any, arg: str, path: Path, keys: dict[str, str], action_s
     shapes = {k: tuple(observation[k].shape) for k in needed}
     run = _FeatureRun(runner, keys, scene.instruction)
     bridge = TorchBridge(torch, run, shapes, action_size)
-    flat = not isinstance(scene.observation_spec, Mapping)
     return bridge_policy(
         f"lerobot:{arg}",
         bridge,
-        (lambda obs: split_flat(scene, obs)) if flat else (lambda obs: obs),
+        observation_views(scene),
         instruct=run.instruct,
         aligned_episodes=not runner.per_env,
     )

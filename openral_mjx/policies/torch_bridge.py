@@ -28,7 +28,7 @@ from jax.experimental.buffer_callback import buffer_callback
 
 from openral_mjx.core.errors import ConfigError
 from openral_mjx.host.pool import host_callback
-from openral_mjx.policies.base import Policy
+from openral_mjx.policies.base import Policy, host_step_policy
 
 # run(inputs, steps) -> actions: inputs by name, batch first, on the module's device; steps:
 # each env's control step in its episode (0: the episode starts here), a 1-D int32 tensor.
@@ -141,21 +141,14 @@ def bridge_policy(
     )
     names = list(bridge.shapes)
 
-    def init(key, obs_spec):
-        del key, obs_spec
-        return None, {"t": jnp.zeros((), jnp.int32), "ms": jnp.zeros((), jnp.float32)}
-
-    def act(params, pstate, obs, key):
-        del params, key
+    def named(obs: Any) -> dict[str, jax.Array]:
         arrays = views(obs)
-        action, ms = call({k: arrays[k] for k in names}, pstate["t"])
-        return action, {"t": pstate["t"] + 1, "ms": ms}
+        return {k: arrays[k] for k in names}
 
-    return Policy(
+    return host_step_policy(
         name,
-        init,
-        act,
-        latency_ms=lambda s: s["ms"],
+        call,
+        named,
         instruct=instruct,
         close=close,
         aligned_episodes=aligned_episodes,

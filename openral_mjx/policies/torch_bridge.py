@@ -63,25 +63,24 @@ class _Latency:
 
     def __init__(self, torch: Any) -> None:
         self.torch = torch
-        self.pending: tuple[Any, Any] | None = None
+        self.begin: Any = None  # this step's start event on a GPU, None on the CPU
+        self.pending: tuple[Any, Any] | None = None  # the previous step's (start, end) events
         self.start_s = 0.0
-        self.events: tuple[Any, Any] | None = None
 
     def start(self, cuda: bool) -> None:
+        self.begin = None
         if cuda:
-            begin = self.torch.cuda.Event(enable_timing=True)
-            begin.record()
-            self.events = (begin, None)
+            self.begin = self.torch.cuda.Event(enable_timing=True)
+            self.begin.record()
         else:
-            self.events = None
             self.start_s = time.perf_counter()
 
     def stop_ms(self) -> float:
-        if self.events is None:
+        if self.begin is None:
             return 1000 * (time.perf_counter() - self.start_s)
         end = self.torch.cuda.Event(enable_timing=True)
         end.record()
-        done, self.pending = self.pending, (self.events[0], end)
+        done, self.pending = self.pending, (self.begin, end)
         if done is None:
             return 0.0
         done[1].synchronize()  # issued a step ago: the GPU has (nearly) finished it

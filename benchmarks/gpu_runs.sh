@@ -13,11 +13,26 @@ case ${1:?stage} in
       python3 benchmarks/metaworld_mirror.py mirror --tasks "$t" --backend ${BACKEND:-warp} \
         --seeds 1000 --out "$out/metaworld_mirror.jsonl" | tail -1 | cut -c1-200
     done ;;
-  mw-host)     # issue 20: MetaWorld itself on all cores, same tasks (its mujoco 3.3.0, .gpumw)
-    python3 benchmarks/metaworld_mirror.py host --tasks ${TASKS:-$(mw_tasks)} --seeds 32 \
-      --workers "$(nproc)" --out "$out/metaworld_host.jsonl" | tail -2 | cut -c1-200
-    python3 benchmarks/metaworld_mirror.py host-direct --tasks ${TASKS:-$(mw_tasks)} --seeds 64 \
-      --workers "$(nproc)" --out "$out/metaworld_host.jsonl" | tail -2 | cut -c1-200 ;;
+  mw-warm)     # issue 20: fill Warp's kernel cache and JAX's compilation cache for SUITE/TASKS,
+               # PROCS processes at once (first task alone: the kernels every model shares)
+    tasks=(${TASKS:-$(mw_tasks)}); P=${PROCS:-8}; export XLA_PYTHON_CLIENT_PREALLOCATE=false
+    python3 benchmarks/metaworld_mirror.py mirror --tasks "${tasks[0]}" --seeds 1000 | tail -1 | cut -c1-200
+    for i in $(seq 0 $((P - 1))); do
+      part=(); for ((j = 1 + i; j < ${#tasks[@]}; j += P)); do part+=("${tasks[j]}"); done
+      [ ${#part[@]} -gt 0 ] && python3 benchmarks/metaworld_mirror.py mirror --tasks "${part[@]}" \
+        --seeds 1000 > "$out/warm_$i.log" 2>&1 &
+    done
+    wait; tail -qn1 "$out"/warm_*.log | cut -c1-160 ;;
+  mw-suite)    # issue 20: the whole suite in one process, 1,000 seeds per task (after mw-warm)
+    python3 benchmarks/metaworld_mirror.py mirror --tasks ${TASKS:-${SUITE:-mt10}} --backend ${BACKEND:-warp} \
+      --seeds 1000 --out "$out/metaworld_mirror_${SUITE:-mt10}.jsonl" | cut -c1-140 ;;
+  mw-host)     # issue 20: MetaWorld itself on all cores, same tasks (its mujoco 3.3.0, .gpumw);
+               # MODES picks host (through our adapter) and/or host-direct (MetaWorld alone)
+    for m in ${MODES:-host host-direct}; do
+      [ "$m" = host ] && n=${HOST_SEEDS:-32} || n=${DIRECT_SEEDS:-64}
+      python3 benchmarks/metaworld_mirror.py "$m" --tasks ${TASKS:-$(mw_tasks)} --seeds "$n" \
+        --workers "$(nproc)" --out "$out/metaworld_host.jsonl" | tail -2 | cut -c1-200
+    done ;;
   mw-raw)      # issue 20: evaluator vs raw physics on the mirror, per task group
     for t in ${TASKS:-reach-v3 push-v3 door-open-v3}; do
       python3 benchmarks/metaworld_mirror.py raw --tasks "$t" --backend ${BACKEND:-warp} \

@@ -54,9 +54,11 @@ def host_workers(task: str, n: int) -> Iterator[list[Worker]]:
     workers: list[Worker] = []
     try:
         for i in range(n):
-            w = Worker(python, {}, logs / f"worker{i}.log", name=f"metaworld {i}")
-            workers.append(w)
-            w.call({"op": "init", "factory": FACTORY, "kwargs": {"task": task}}, TIMEOUT_S)
+            workers.append(Worker(python, {}, logs / f"worker{i}.log", name=f"metaworld {i}"))
+        init = {"op": "init", "factory": FACTORY, "kwargs": {"task": task}}
+        # built side by side: each start imports MetaWorld and compiles its model (~2 s)
+        with concurrent.futures.ThreadPoolExecutor(n) as pool:
+            list(pool.map(lambda w: w.call(init, TIMEOUT_S), workers))
         yield workers
     finally:
         for w in workers:

@@ -73,6 +73,36 @@ def test_seed_reproduces_its_episode_in_any_batch():
     assert np.all(np.linalg.norm(vec[:, :2] - vec[:, 3:5], axis=1) >= 0.15)  # MetaWorld's redraw
 
 
+def test_box_close_reset_steps_after_moving_the_box():
+    """box-close's reset as MetaWorld 3.1.1 writes it, in MuJoCo C: the hand reset (50 x 5
+    steps) with the box moved, `frame_skip` more physics steps, then the lid's xyz set and its
+    velocity zeroed, its orientation kept. The mirror's reset state matches it."""
+    import mujoco
+
+    from openral_mjx.scenes.metaworld_mjx import task as mw
+
+    scene = make_scene("metaworld_mjx", {"task": "box-close-v3"}, backend="c")
+    assert TASKS["box-close-v3"].settle_steps == 1
+    assert all(t.hand_reset_per_episode for t in TASKS.values() if t.settle_steps)
+    state = agreement.mirror_resets(scene, np.arange(2))
+    m = scene.mj_model
+    mocap = m.body_mocapid[m.body("mocap").id]
+    box = m.body("boxbody").id
+    for i, vec in enumerate(np.asarray(state.info["vec"], np.float64)):
+        d = mujoco.MjData(m)
+        m.body_pos[box, :2] = vec[3:5]
+        for _ in range(mw.HAND_RESET_STEPS + 1):  # the hand reset, then frame_skip steps
+            d.mocap_pos[mocap] = TASKS["box-close-v3"].hand_init_pos
+            d.mocap_quat[mocap] = mw.MOCAP_QUAT
+            d.ctrl[:] = (-1.0, 1.0)
+            mujoco.mj_step(m, d, nstep=mw.FRAME_SKIP)
+        d.qpos[9:12] = (vec[0], vec[1], np.float32(0.02))
+        d.qvel[9:15] = 0.0
+        qpos = np.asarray(state.physics.quantities.qpos[i])
+        np.testing.assert_allclose(qpos, d.qpos, atol=1e-4)
+    scene.close()
+
+
 @pytest.mark.slow  # MJX compiles MetaWorld's mesh collisions for minutes on a CPU
 def test_mjx_starts_where_c_does():
     """The same random vectors give the same reset observation on mjx (float32 kinematics;

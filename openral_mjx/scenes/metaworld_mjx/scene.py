@@ -286,7 +286,7 @@ class MetaWorldMjx(Scene):
         ctrl = jnp.array([-1.0, 1.0], jnp.float32)
         physics = jax.lax.fori_loop(
             0,
-            mw.HAND_RESET_STEPS,
+            mw.HAND_RESET_STEPS + self.logic.settle_steps,  # then the reset's own steps
             lambda _, p: self.backend.step(p, ctrl, mocap=(mocap, quat)),
             physics,
         )

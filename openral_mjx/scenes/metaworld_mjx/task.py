@@ -168,6 +168,9 @@ class MirrorTask:
     # Whether MetaWorld's hand reset meets a body the reset moves (then the hand's start
     # depends on the episode and is simulated per reset, 250 physics steps, not once).
     hand_reset_per_episode: ClassVar[bool] = False
+    # Control steps (of FRAME_SKIP physics steps) MetaWorld's reset simulates after moving
+    # its bodies, before placing the objects (box-close and door-lock step `frame_skip` times).
+    settle_steps: ClassVar[int] = 0
 
     def accept(self, vec: jax.Array) -> jax.Array:
         """Whether MetaWorld's reset keeps this random vector (default: always)."""

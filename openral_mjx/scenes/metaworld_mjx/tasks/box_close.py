@@ -5,7 +5,8 @@ body goes to the drawn box xy at its height after the hand reset; the lid's free
 (qpos 9..11) goes to the drawn lid xy at height 0.02 (a float32), velocities zeroed. The goal
 is the drawn box position. Observed object: the ``top_link`` body and its ``xquat``
 (w-x-y-z). Success: the observed lid within 0.08 m of the goal. MetaWorld steps the physics 5
-times (``frame_skip``) between moving the box and placing the lid; the mirror does not.
+times (``frame_skip``) between moving the box and placing the lid, so the lid keeps the
+orientation those steps leave it in (`settle_steps`).
 """
 
 from __future__ import annotations
@@ -34,6 +35,7 @@ class BoxClose(MirrorTask):
     bodies = ("top_link",)
     moved_bodies = ("boxbody",)
     hand_reset_per_episode = True  # the lid falls off the moved box during it
+    settle_steps = 1
 
     def accept(self, vec: jax.Array) -> jax.Array:
         return jnp.linalg.norm(vec[:2] - vec[3:5]) >= 0.25

@@ -86,6 +86,7 @@ class DoorLock(MirrorTask):
     sites = ("lockStartLock",)
     moved_bodies = ("door",)
     hand_reset_per_episode = True  # the arm brushes the moved lock on some seeds
+    settle_steps = 1  # MetaWorld steps `frame_skip` times, then reads the lock's position
 
     def place(
         self, facts: ModelFacts, vec: jax.Array, qpos: jax.Array, qvel: jax.Array

@@ -103,6 +103,18 @@ def test_box_close_reset_steps_after_moving_the_box():
     scene.close()
 
 
+def test_window_close_reset_observation_is_metaworlds():
+    """MetaWorld reads window-close's reset observation before recomputing positions: it shows
+    the handle 0.2 m from where the window starts. The mirror observes the same; the physics
+    from the placed state agrees as for any task."""
+    scene = make_scene("metaworld_mjx", {"task": "window-close-v3"}, backend="c")
+    with agreement.host_workers("window-close-v3", 1) as workers:
+        err = agreement.trajectory_agreement(scene, workers, np.arange(2), steps=3)
+    scene.close()
+    assert err["reset"].max() < RESET_TOL, err
+    assert err["object"].max() < TRAJECTORY_TOL, err
+
+
 @pytest.mark.slow  # MJX compiles MetaWorld's mesh collisions for minutes on a CPU
 def test_mjx_starts_where_c_does():
     """The same random vectors give the same reset observation on mjx (float32 kinematics;

@@ -7,7 +7,7 @@ every comparison puts it on the mirror's initial state by handing it the mirror'
 - **initial state**: the largest difference between the two reset observations;
 - **physics**: from the mirror's exact reset joint state (handed to MetaWorld too), the same
   open-loop action sequence (uniform in [-1, 1], 100 steps); the largest distance over the
-  trajectory between the hands, and between the first objects, in the observations;
+  100 steps between the hands, and between the first objects, in the observations;
 - **outcome**: MetaWorld's scripted expert closed loop in both (on the mirror through
   `metaworld-expert`), per seed: success within the episode, the agreement of the two, the
   exact McNemar test on the discordant seeds, both rates with Wilson intervals.
@@ -117,7 +117,10 @@ def trajectory_agreement(
             for i in range(n)
         ],
     )
-    host = np.stack([r["obs"] for r in same])
+    # the physics from step 1 on: a reset observation may show the state before placement
+    # (`observes_before_place`), and MetaWorld set to a joint state observes it afresh
+    host = np.stack([r["obs"] for r in same])[:, 1:]
+    mirror = mirror[:, 1:]
     return {
         "reset": np.array([np.abs(f["obs"][0] - reset_obs[i]).max() for i, f in enumerate(fresh)]),
         "hand": np.linalg.norm(host[:, :, :3] - mirror[:, :, :3], axis=-1).max(axis=1),

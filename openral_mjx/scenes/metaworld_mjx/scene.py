@@ -256,6 +256,9 @@ class MetaWorldMjx(Scene):
         view = self._view(physics)
         episode = t.episode(self.facts, vec, view)
         curr = self._current(view)
+        if t.observes_before_place:  # the hand reset's state, with the moved bodies in place
+            before = self.backend.init(self._qpos, self._qvel, fields=fields)
+            curr = self._current(self._view(before))
         obs = jnp.concatenate([curr, curr, self._goal(episode), *self._images(physics)])
         info = {
             "vec": vec,

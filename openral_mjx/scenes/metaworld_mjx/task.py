@@ -171,6 +171,10 @@ class MirrorTask:
     # Control steps (of FRAME_SKIP physics steps) MetaWorld's reset simulates after moving
     # its bodies, before placing the objects (box-close and door-lock step `frame_skip` times).
     settle_steps: ClassVar[int] = 0
+    # Whether MetaWorld's reset observation is read from the hand reset's last kinematics (the
+    # task writes its joints and bodies without recomputing positions): then the mirror's
+    # reset observation, and the first step's previous frame, show the state before `place`.
+    observes_before_place: ClassVar[bool] = False
 
     def accept(self, vec: jax.Array) -> jax.Array:
         """Whether MetaWorld's reset keeps this random vector (default: always)."""

@@ -6,10 +6,11 @@ the window + (0.2, 0, 0) (open) or the window (close). Observed object: the ``ha
 (open) or ``handleCloseStart`` (close) site, with a zero quaternion. Success: that site within
 0.05 of the goal in x.
 
-MetaWorld writes the close task's slide after the hand reset's last kinematics and reads its
-reset observation without recomputing them, so its reset observation shows the handle at the
-slide's hand-reset position (≈ 0) while the mirror's shows it at 0.2: the two reset
-observations differ by 0.2 m in the handle's x (the state and every later step agree).
+MetaWorld writes the slide after the hand reset's last kinematics and reads its reset
+observation without recomputing them, so that observation (and the first step's previous
+frame) shows the handle at the slide's hand-reset position (≈ 0), 0.2 m from where the close
+task's window starts. The mirror observes the same way (`observes_before_place`); the state,
+and every later observation, is the placed one.
 """
 
 from __future__ import annotations
@@ -29,6 +30,7 @@ class _Window(MirrorTask):
     goal_low = (-0.5, 0.40, 0.05)  # the hand's box
     goal_high = (0.5, 1.0, 0.5)
     moved_bodies = ("window",)
+    observes_before_place = True
     handle: ClassVar[str]
     slide: ClassVar[float]
     goal_offset: ClassVar[tuple[float, float, float]]

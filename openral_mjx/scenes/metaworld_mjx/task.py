@@ -19,6 +19,10 @@ clipped to) and reimplements the task's logic, one env, in JAX:
 - `success(obs, view, episode)`: ``info["success"]`` of MetaWorld's ``evaluate_state``.
 - `reward(...)`: MetaWorld's v2 reward where ported; else 0 (`has_reward` False).
 
+Patterns many tasks share have one implementation here: `MovedBodyTask` (the vector is where a
+fixed body goes), `DrawnGoalTask` (the vector is (object, goal), success a distance to the goal)
+and `FreeObjectTask` (that, with a free object and MetaWorld's redraw rule).
+
 `View` reads the physics quantities by name; a task lists the bodies, sites and geoms it reads
 in `bodies`, `sites`, `geoms` (the hand, claws and pads are always there).
 """
@@ -215,3 +219,67 @@ def long_tail_tolerance(x: jax.Array, upper: float, margin: jax.Array) -> jax.Ar
     d = (x - upper) / jnp.where(margin > 0, margin, 1.0)
     tail = 1.0 / (d * d * (1.0 / 0.1 - 1.0) + 1.0)
     return jnp.where(inside, 1.0, jnp.where(margin > 0, tail, 0.0))
+
+
+def at_rest_height(facts: ModelFacts, xy: jax.Array, rest: str, dtype: Any = None) -> jax.Array:
+    """`xy` at the height of ``facts.rest[rest]`` (MetaWorld's ``fix_extreme_obj_pos`` /
+    ``adjust_initObjPos``: a drawn xy at the object's resting height), as
+    ``jnp.asarray(..., dtype)`` makes that height."""
+    return jnp.concatenate([xy, jnp.asarray(facts.rest[rest][2:3], dtype)])
+
+
+class MovedBodyTask(MirrorTask):
+    """A task whose random vector is the position its reset gives its one moved fixed body
+    (`moved_bodies`); the joints stay as the hand reset leaves them."""
+
+    def place(
+        self, facts: ModelFacts, vec: jax.Array, qpos: jax.Array, qvel: jax.Array
+    ) -> tuple[jax.Array, jax.Array, dict[str, jax.Array]]:
+        (body,) = self.moved_bodies
+        return qpos, qvel, {body: vec}
+
+
+class DrawnGoalTask(MirrorTask):
+    """A task whose random vector is (object xyz, goal xyz). The episode's ``target_pos`` is
+    `target` (default: the drawn goal), its ``obj_init_pos`` `obj_init` (default: the drawn
+    object position); success: the observed object (``obs[4:7]``) within `success_radius` of
+    the goal."""
+
+    success_radius: ClassVar[float]
+
+    def obj_init(self, facts: ModelFacts, vec: jax.Array) -> jax.Array:
+        """The object's initial position (MetaWorld's ``obj_init_pos``)."""
+        del facts
+        return vec[:3]
+
+    def target(self, facts: ModelFacts, vec: jax.Array, view: View) -> jax.Array:
+        """The goal (MetaWorld's ``_target_pos``), read after placement."""
+        del facts, view
+        return vec[3:6]
+
+    def episode(self, facts: ModelFacts, vec: jax.Array, view: View) -> dict[str, jax.Array]:
+        return {
+            "target_pos": self.target(facts, vec, view),
+            "obj_init_pos": self.obj_init(facts, vec),
+        }
+
+    def success(self, obs: jax.Array, view: View, episode: Mapping[str, Any]) -> jax.Array:
+        return jnp.linalg.norm(obs[4:7] - episode["target_pos"]) <= self.success_radius
+
+
+class FreeObjectTask(DrawnGoalTask):
+    """A `DrawnGoalTask` whose object is free: MetaWorld redraws the vector while the object's
+    and the goal's xy are closer than `min_goal_distance`; by default `place` is its
+    ``_set_obj_xyz`` on the free joint ``objjoint`` (position `obj_init`, velocities zeroed),
+    moving no body."""
+
+    min_goal_distance: ClassVar[float] = 0.15
+
+    def accept(self, vec: jax.Array) -> jax.Array:
+        return jnp.linalg.norm(vec[:2] - vec[3:5]) >= self.min_goal_distance
+
+    def place(
+        self, facts: ModelFacts, vec: jax.Array, qpos: jax.Array, qvel: jax.Array
+    ) -> tuple[jax.Array, jax.Array, dict[str, jax.Array]]:
+        qpos, qvel = set_obj_xyz(facts, qpos, qvel, self.obj_init(facts, vec))
+        return qpos, qvel, {}

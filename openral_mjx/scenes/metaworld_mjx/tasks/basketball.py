@@ -17,14 +17,14 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from openral_mjx.scenes.metaworld_mjx.task import MirrorTask, ModelFacts, View
+from openral_mjx.scenes.metaworld_mjx.task import FreeObjectTask, ModelFacts, View
 
 BALL_QPOS = 9  # MetaWorld's `_set_obj_xyz`: qpos[9:12] = pos, qvel[9:15] = 0
 BALL_Z = float(np.float32(0.03))  # init_config["obj_init_pos"][-1] (a float32 array)
 TARGET_RADIUS = 0.08
 
 
-class Basketball(MirrorTask):
+class Basketball(FreeObjectTask):
     name = "basketball-v3"
     xml = "sawyer_xyz/sawyer_basketball.xml"
     hand_init_pos = (0.0, 0.6, 0.2)
@@ -36,21 +36,18 @@ class Basketball(MirrorTask):
     sites = ("goal",)
     moved_bodies = ("basket_goal",)
 
-    def accept(self, vec: jax.Array) -> jax.Array:
-        return jnp.linalg.norm(vec[:2] - vec[3:5]) >= 0.15
-
-    def _obj_init(self, vec: jax.Array) -> jax.Array:
+    def obj_init(self, facts: ModelFacts, vec: jax.Array) -> jax.Array:
         return jnp.concatenate([vec[:2], jnp.array([BALL_Z])])
 
     def place(
         self, facts: ModelFacts, vec: jax.Array, qpos: jax.Array, qvel: jax.Array
     ) -> tuple[jax.Array, jax.Array, dict[str, jax.Array]]:
-        qpos = qpos.at[BALL_QPOS : BALL_QPOS + 3].set(self._obj_init(vec))
+        qpos = qpos.at[BALL_QPOS : BALL_QPOS + 3].set(self.obj_init(facts, vec))
         qvel = qvel.at[BALL_QPOS : BALL_QPOS + 6].set(0.0)
         return qpos, qvel, {"basket_goal": vec[3:6]}
 
-    def episode(self, facts: ModelFacts, vec: jax.Array, view: View) -> dict[str, jax.Array]:
-        return {"target_pos": view.site_pos("goal"), "obj_init_pos": self._obj_init(vec)}
+    def target(self, facts: ModelFacts, vec: jax.Array, view: View) -> jax.Array:
+        return view.site_pos("goal")
 
     def objects(self, view: View) -> tuple[jax.Array, jax.Array]:
         return view.body_pos("bsktball"), view.body_quat("bsktball")

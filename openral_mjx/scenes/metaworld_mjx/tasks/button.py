@@ -75,12 +75,11 @@ class ButtonPressTopdown(_Button):
     axis, tolerance, reset_joint = 2, 0.024, False
 
 
-class ButtonPressTopdownWall(_Button):
+class ButtonPressTopdownWall(ButtonPressTopdown):
+    """button-press-topdown-v3 with a wall: the same box, axis and tolerance."""
+
     name = "button-press-topdown-wall-v3"
     xml = "sawyer_xyz/sawyer_button_press_topdown_wall.xml"
-    reset_low = (-0.1, 0.8, 0.115)
-    reset_high = (0.1, 0.9, 0.115)
-    axis, tolerance, reset_joint = 2, 0.024, False
 
 
 TASKS = (ButtonPress(), ButtonPressWall(), ButtonPressTopdown(), ButtonPressTopdownWall())

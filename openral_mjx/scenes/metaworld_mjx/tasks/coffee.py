@@ -22,7 +22,13 @@ from typing import Any
 import jax
 import jax.numpy as jnp
 
-from openral_mjx.scenes.metaworld_mjx.task import MirrorTask, ModelFacts, View, matrix_quat
+from openral_mjx.scenes.metaworld_mjx.task import (
+    FreeObjectTask,
+    MirrorTask,
+    ModelFacts,
+    View,
+    matrix_quat,
+)
 
 MUG_QPOS = 0  # the mug's free joint position (qpos[0:3])
 ZEROED_QVEL = slice(9, 15)  # what the coffee tasks' `_set_obj_xyz` zeroes
@@ -61,15 +67,13 @@ class CoffeeButton(MirrorTask):
         return jnp.abs(episode["target_pos"][1] - obs[5]) <= 0.02
 
 
-class _Mug(MirrorTask):
+class _Mug(FreeObjectTask):
     xml = "sawyer_xyz/sawyer_coffee.xml"
     hand_init_pos = (0.0, 0.4, 0.2)
     bodies = ("obj",)
     geoms = ("mug",)
     moved_bodies = ("coffee_machine",)
-
-    def accept(self, vec: jax.Array) -> jax.Array:
-        return jnp.linalg.norm(vec[:2] - vec[3:5]) >= 0.15
+    success_radius = 0.07
 
     def _machine(self, vec: jax.Array) -> jax.Array:
         raise NotImplementedError
@@ -80,14 +84,8 @@ class _Mug(MirrorTask):
         qpos, qvel = _set_mug(qpos, qvel, vec[:3])
         return qpos, qvel, {"coffee_machine": self._machine(vec)}
 
-    def episode(self, facts: ModelFacts, vec: jax.Array, view: View) -> dict[str, jax.Array]:
-        return {"target_pos": vec[3:6], "obj_init_pos": vec[:3]}
-
     def objects(self, view: View) -> tuple[jax.Array, jax.Array]:
         return view.body_pos("obj"), matrix_quat(view.geom_quat("mug"))
-
-    def success(self, obs: jax.Array, view: View, episode: Mapping[str, Any]) -> jax.Array:
-        return jnp.linalg.norm(obs[4:7] - episode["target_pos"]) <= 0.07
 
 
 class CoffeePull(_Mug):

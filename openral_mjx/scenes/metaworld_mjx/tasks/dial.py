@@ -15,13 +15,13 @@ from typing import Any
 import jax
 import jax.numpy as jnp
 
-from openral_mjx.scenes.metaworld_mjx.task import MirrorTask, ModelFacts, View
+from openral_mjx.scenes.metaworld_mjx.task import ModelFacts, MovedBodyTask, View
 
 DIAL_RADIUS = 0.05
 TARGET_RADIUS = 0.07
 
 
-class DialTurn(MirrorTask):
+class DialTurn(MovedBodyTask):
     name = "dial-turn-v3"
     xml = "sawyer_xyz/sawyer_dial.xml"
     hand_init_pos = (0.0, 0.6, 0.2)
@@ -31,11 +31,6 @@ class DialTurn(MirrorTask):
     goal_high = (0.1, 0.83, 0.0301)
     bodies = ("dial",)
     moved_bodies = ("dial",)
-
-    def place(
-        self, facts: ModelFacts, vec: jax.Array, qpos: jax.Array, qvel: jax.Array
-    ) -> tuple[jax.Array, jax.Array, dict[str, jax.Array]]:
-        return qpos, qvel, {"dial": vec}
 
     def episode(self, facts: ModelFacts, vec: jax.Array, view: View) -> dict[str, jax.Array]:
         return {"target_pos": vec + jnp.array([0.0, 0.03, 0.03]), "obj_init_pos": vec}

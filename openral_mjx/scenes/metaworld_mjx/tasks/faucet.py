@@ -16,12 +16,12 @@ from typing import Any
 import jax
 import jax.numpy as jnp
 
-from openral_mjx.scenes.metaworld_mjx.task import MirrorTask, ModelFacts, View
+from openral_mjx.scenes.metaworld_mjx.task import ModelFacts, MovedBodyTask, View
 
 HANDLE_LENGTH = 0.175
 
 
-class _Faucet(MirrorTask):
+class _Faucet(MovedBodyTask):
     xml = "sawyer_xyz/sawyer_faucet.xml"
     hand_init_pos = (0.0, 0.4, 0.2)
     goal_low = (-0.5, 0.40, -0.15)
@@ -33,11 +33,6 @@ class _Faucet(MirrorTask):
     handle_site: str
     side: float  # +1 open, -1 close
     obs_offset: tuple[float, float, float]
-
-    def place(
-        self, facts: ModelFacts, vec: jax.Array, qpos: jax.Array, qvel: jax.Array
-    ) -> tuple[jax.Array, jax.Array, dict[str, jax.Array]]:
-        return qpos, qvel, {"faucetBase": vec}
 
     def episode(self, facts: ModelFacts, vec: jax.Array, view: View) -> dict[str, jax.Array]:
         offset = jnp.array([self.side * HANDLE_LENGTH, 0.0, 0.125], vec.dtype)

@@ -8,18 +8,15 @@ within 0.05 of the goal.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
-from typing import Any
-
 import jax
 import jax.numpy as jnp
 
-from openral_mjx.scenes.metaworld_mjx.task import MirrorTask, ModelFacts, View, set_obj_xyz
+from openral_mjx.scenes.metaworld_mjx.task import FreeObjectTask, ModelFacts, View
 
 OBJ_INIT_Z = 0.05  # init_config["obj_init_pos"][-1]
 
 
-class HandInsert(MirrorTask):
+class HandInsert(FreeObjectTask):
     name = "hand-insert-v3"
     xml = "sawyer_xyz/sawyer_table_with_hole.xml"
     hand_init_pos = (0.0, 0.6, 0.2)
@@ -30,27 +27,13 @@ class HandInsert(MirrorTask):
     hand_low = (-0.5, 0.40, -0.15)
     hand_high = (0.5, 1.0, 0.5)
     bodies = ("obj",)
+    success_radius = 0.05
 
-    def accept(self, vec: jax.Array) -> jax.Array:
-        return jnp.linalg.norm(vec[:2] - vec[3:5]) >= 0.15
-
-    def _obj_init(self, vec: jax.Array) -> jax.Array:
+    def obj_init(self, facts: ModelFacts, vec: jax.Array) -> jax.Array:
         return jnp.concatenate([vec[:2], jnp.full((1,), OBJ_INIT_Z, vec.dtype)])
-
-    def place(
-        self, facts: ModelFacts, vec: jax.Array, qpos: jax.Array, qvel: jax.Array
-    ) -> tuple[jax.Array, jax.Array, dict[str, jax.Array]]:
-        qpos, qvel = set_obj_xyz(facts, qpos, qvel, self._obj_init(vec))
-        return qpos, qvel, {}
-
-    def episode(self, facts: ModelFacts, vec: jax.Array, view: View) -> dict[str, jax.Array]:
-        return {"target_pos": vec[3:6], "obj_init_pos": self._obj_init(vec)}
 
     def objects(self, view: View) -> tuple[jax.Array, jax.Array]:
         return view.body_pos("obj"), view.body_quat("obj")
-
-    def success(self, obs: jax.Array, view: View, episode: Mapping[str, Any]) -> jax.Array:
-        return jnp.linalg.norm(obs[4:7] - episode["target_pos"]) <= 0.05
 
 
 TASKS = (HandInsert(),)

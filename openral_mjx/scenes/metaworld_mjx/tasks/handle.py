@@ -72,7 +72,12 @@ class HandlePress(_Press):
     goal_high = (0.1, 0.70, 0.08)
 
 
-class HandlePullSide(_Handle):
+class _Pull(_Handle):
+    handle_qpos = -0.1
+    goal_site = "goalPull"
+
+
+class HandlePullSide(_Pull):
     name = "handle-pull-side-v3"
     xml = "sawyer_xyz/sawyer_handle_press_sideways.xml"
     reset_low = (-0.35, 0.65, 0.0)
@@ -80,15 +85,13 @@ class HandlePullSide(_Handle):
     goal_low = (-0.5, 0.40, 0.05)
     goal_high = (0.5, 1.0, 0.5)
     sites = ("goalPull", "handleCenter")
-    handle_qpos = -0.1
-    goal_site = "goalPull"
     handle_site = "handleCenter"
 
     def success(self, obs: jax.Array, view: View, episode: Mapping[str, Any]) -> jax.Array:
         return jnp.linalg.norm(obs[4:7] - episode["target_pos"]) <= 0.08
 
 
-class HandlePull(_Handle):
+class HandlePull(_Pull):
     name = "handle-pull-v3"
     xml = "sawyer_xyz/sawyer_handle_press.xml"
     reset_low = (-0.1, 0.8, -0.001)
@@ -96,8 +99,6 @@ class HandlePull(_Handle):
     goal_low = (-0.1, 0.55, 0.04)
     goal_high = (0.1, 0.70, 0.18)
     sites = ("goalPull", "handleRight")
-    handle_qpos = -0.1
-    goal_site = "goalPull"
     handle_site = "handleRight"
 
     def success(self, obs: jax.Array, view: View, episode: Mapping[str, Any]) -> jax.Array:

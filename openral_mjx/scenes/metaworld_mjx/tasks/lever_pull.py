@@ -16,12 +16,12 @@ from typing import Any
 import jax
 import jax.numpy as jnp
 
-from openral_mjx.scenes.metaworld_mjx.task import MirrorTask, ModelFacts, View, matrix_quat
+from openral_mjx.scenes.metaworld_mjx.task import ModelFacts, MovedBodyTask, View, matrix_quat
 
 LEVER_RADIUS = 0.2
 
 
-class LeverPull(MirrorTask):
+class LeverPull(MovedBodyTask):
     name = "lever-pull-v3"
     xml = "sawyer_xyz/sawyer_lever_pull.xml"
     hand_init_pos = (0.0, 0.4, 0.2)
@@ -34,11 +34,6 @@ class LeverPull(MirrorTask):
     sites = ("leverStart",)
     geoms = ("objGeom",)
     moved_bodies = ("lever",)
-
-    def place(
-        self, facts: ModelFacts, vec: jax.Array, qpos: jax.Array, qvel: jax.Array
-    ) -> tuple[jax.Array, jax.Array, dict[str, jax.Array]]:
-        return qpos, qvel, {"lever": vec}
 
     def episode(self, facts: ModelFacts, vec: jax.Array, view: View) -> dict[str, jax.Array]:
         return {

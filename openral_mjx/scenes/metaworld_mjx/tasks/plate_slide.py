@@ -10,21 +10,18 @@ observed plate within 0.07 of the goal.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
-from typing import Any
-
 import jax
-import jax.numpy as jnp
 
-from openral_mjx.scenes.metaworld_mjx.task import MirrorTask, ModelFacts, View, matrix_quat
+from openral_mjx.scenes.metaworld_mjx.task import DrawnGoalTask, ModelFacts, View, matrix_quat
 
 SLIDES_QPOS = 9  # MetaWorld's `_set_obj_xyz` writes qpos[9:11]
 
 
-class _PlateSlide(MirrorTask):
+class _PlateSlide(DrawnGoalTask):
     xml = "sawyer_xyz/sawyer_plate_slide.xml"
     hand_init_pos = (0.0, 0.6, 0.2)
     geoms = ("puck",)
+    success_radius = 0.07
 
     def place(
         self, facts: ModelFacts, vec: jax.Array, qpos: jax.Array, qvel: jax.Array
@@ -32,14 +29,8 @@ class _PlateSlide(MirrorTask):
         qpos = qpos.at[SLIDES_QPOS : SLIDES_QPOS + 2].set(0.0)
         return qpos, qvel, {b: vec[3:6] for b in self.moved_bodies}
 
-    def episode(self, facts: ModelFacts, vec: jax.Array, view: View) -> dict[str, jax.Array]:
-        return {"target_pos": vec[3:6], "obj_init_pos": vec[:3]}
-
     def objects(self, view: View) -> tuple[jax.Array, jax.Array]:
         return view.geom_pos("puck"), matrix_quat(view.geom_quat("puck"))
-
-    def success(self, obs: jax.Array, view: View, episode: Mapping[str, Any]) -> jax.Array:
-        return jnp.linalg.norm(obs[4:7] - episode["target_pos"]) <= 0.07
 
 
 class PlateSlide(_PlateSlide):

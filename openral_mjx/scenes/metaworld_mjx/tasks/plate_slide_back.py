@@ -12,21 +12,16 @@ quaternion (x-y-z-w). Success: the observed plate within 0.07 of the goal.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
-from typing import Any, ClassVar
+from typing import ClassVar
 
 import jax
 import jax.numpy as jnp
 
-from openral_mjx.scenes.metaworld_mjx.task import MirrorTask, ModelFacts, View, matrix_quat
+from openral_mjx.scenes.metaworld_mjx.task import ModelFacts
+from openral_mjx.scenes.metaworld_mjx.tasks.plate_slide import SLIDES_QPOS, _PlateSlide
 
-SLIDES_QPOS = 9  # MetaWorld's `_set_obj_xyz` writes qpos[9:11]
 
-
-class _PlateSlideBack(MirrorTask):
-    xml = "sawyer_xyz/sawyer_plate_slide.xml"
-    hand_init_pos = (0.0, 0.6, 0.2)
-    geoms = ("puck",)
+class _PlateSlideBack(_PlateSlide):
     slides: ClassVar[tuple[float, float]]
 
     def place(
@@ -34,15 +29,6 @@ class _PlateSlideBack(MirrorTask):
     ) -> tuple[jax.Array, jax.Array, dict[str, jax.Array]]:
         qpos = qpos.at[SLIDES_QPOS : SLIDES_QPOS + 2].set(jnp.asarray(self.slides))
         return qpos, qvel, {b: vec[:3] for b in self.moved_bodies}
-
-    def episode(self, facts: ModelFacts, vec: jax.Array, view: View) -> dict[str, jax.Array]:
-        return {"target_pos": vec[3:6], "obj_init_pos": vec[:3]}
-
-    def objects(self, view: View) -> tuple[jax.Array, jax.Array]:
-        return view.geom_pos("puck"), matrix_quat(view.geom_quat("puck"))
-
-    def success(self, obs: jax.Array, view: View, episode: Mapping[str, Any]) -> jax.Array:
-        return jnp.linalg.norm(obs[4:7] - episode["target_pos"]) <= 0.07
 
 
 class PlateSlideBack(_PlateSlideBack):

@@ -9,22 +9,18 @@ within 0.07 of the goal.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
-from typing import Any
-
 import jax
-import jax.numpy as jnp
 
 from openral_mjx.scenes.metaworld_mjx.task import (
-    MirrorTask,
+    FreeObjectTask,
     ModelFacts,
     View,
+    at_rest_height,
     matrix_quat,
-    set_obj_xyz,
 )
 
 
-class PushBack(MirrorTask):
+class PushBack(FreeObjectTask):
     name = "push-back-v3"
     xml = "sawyer_xyz/sawyer_push_back_v3.xml"
     hand_init_pos = (0.0, 0.6, 0.2)
@@ -33,30 +29,16 @@ class PushBack(MirrorTask):
     goal_low = (-0.1, 0.6, 0.0199)
     goal_high = (0.1, 0.7, 0.0201)
     geoms = ("objGeom",)
+    success_radius = 0.07
 
-    def accept(self, vec: jax.Array) -> jax.Array:
-        return jnp.linalg.norm(vec[:2] - vec[3:5]) >= 0.15
+    def obj_init(self, facts: ModelFacts, vec: jax.Array) -> jax.Array:
+        return at_rest_height(facts, vec[:2], "geom:objGeom", vec.dtype)
 
-    def _at_rest_height(self, facts: ModelFacts, xy: jax.Array) -> jax.Array:
-        return jnp.concatenate([xy, jnp.asarray(facts.rest["geom:objGeom"][2:3], xy.dtype)])
-
-    def place(
-        self, facts: ModelFacts, vec: jax.Array, qpos: jax.Array, qvel: jax.Array
-    ) -> tuple[jax.Array, jax.Array, dict[str, jax.Array]]:
-        qpos, qvel = set_obj_xyz(facts, qpos, qvel, self._at_rest_height(facts, vec[:2]))
-        return qpos, qvel, {}
-
-    def episode(self, facts: ModelFacts, vec: jax.Array, view: View) -> dict[str, jax.Array]:
-        return {
-            "target_pos": self._at_rest_height(facts, vec[3:5]),
-            "obj_init_pos": self._at_rest_height(facts, vec[:2]),
-        }
+    def target(self, facts: ModelFacts, vec: jax.Array, view: View) -> jax.Array:
+        return at_rest_height(facts, vec[3:5], "geom:objGeom", vec.dtype)
 
     def objects(self, view: View) -> tuple[jax.Array, jax.Array]:
         return view.geom_pos("objGeom"), matrix_quat(view.geom_quat("objGeom"))
-
-    def success(self, obs: jax.Array, view: View, episode: Mapping[str, Any]) -> jax.Array:
-        return jnp.linalg.norm(obs[4:7] - episode["target_pos"]) <= 0.07
 
 
 TASKS = (PushBack(),)

@@ -14,16 +14,16 @@ import jax
 import jax.numpy as jnp
 
 from openral_mjx.scenes.metaworld_mjx.task import (
-    MirrorTask,
+    FreeObjectTask,
     ModelFacts,
     View,
+    at_rest_height,
     long_tail_tolerance,
     matrix_quat,
-    set_obj_xyz,
 )
 
 
-class _Puck(MirrorTask):
+class _Puck(FreeObjectTask):
     """What the three tasks share."""
 
     hand_init_pos = (0.0, 0.6, 0.2)
@@ -33,21 +33,6 @@ class _Puck(MirrorTask):
     goal_high = (0.1, 0.9, 0.3)
     bodies = ("obj",)
     geoms = ("objGeom",)
-
-    def accept(self, vec: jax.Array) -> jax.Array:
-        return jnp.linalg.norm(vec[:2] - vec[3:5]) >= 0.15
-
-    def place(
-        self, facts: ModelFacts, vec: jax.Array, qpos: jax.Array, qvel: jax.Array
-    ) -> tuple[jax.Array, jax.Array, dict[str, jax.Array]]:
-        qpos, qvel = set_obj_xyz(facts, qpos, qvel, self._obj_init(facts, vec))
-        return qpos, qvel, {}
-
-    def _obj_init(self, facts: ModelFacts, vec: jax.Array) -> jax.Array:
-        return vec[:3]
-
-    def episode(self, facts: ModelFacts, vec: jax.Array, view: View) -> dict[str, jax.Array]:
-        return {"target_pos": vec[3:6], "obj_init_pos": self._obj_init(facts, vec)}
 
     def objects(self, view: View) -> tuple[jax.Array, jax.Array]:
         return view.body_pos("obj"), matrix_quat(view.geom_quat("objGeom"))
@@ -77,28 +62,21 @@ class Push(_Puck):
     reset_high = (0.1, 0.7, 0.02, 0.1, 0.9, 0.02)
     goal_low = (-0.1, 0.8, 0.01)
     goal_high = (0.1, 0.9, 0.02)
+    rest_key = "body:obj"  # the rest height the drawn xy are put at (`facts.rest`)
+    success_radius = 0.05
 
-    def _obj_init(self, facts: ModelFacts, vec: jax.Array) -> jax.Array:
+    def obj_init(self, facts: ModelFacts, vec: jax.Array) -> jax.Array:
         # `fix_extreme_obj_pos`: the drawn xy at the puck's rest height
-        return jnp.concatenate([vec[:2], jnp.asarray(facts.rest["body:obj"][2:3])])
+        return at_rest_height(facts, vec[:2], self.rest_key)
 
-    def episode(self, facts: ModelFacts, vec: jax.Array, view: View) -> dict[str, jax.Array]:
-        z = jnp.asarray(facts.rest["body:obj"][2:3])
-        return {
-            "target_pos": jnp.concatenate([vec[3:5], z]),
-            "obj_init_pos": self._obj_init(facts, vec),
-        }
-
-    def success(self, obs: jax.Array, view: View, episode: Mapping[str, Any]) -> jax.Array:
-        return jnp.linalg.norm(obs[4:7] - episode["target_pos"]) <= 0.05
+    def target(self, facts: ModelFacts, vec: jax.Array, view: View) -> jax.Array:
+        return at_rest_height(facts, vec[3:5], self.rest_key)
 
 
 class PickPlace(_Puck):
     name = "pick-place-v3"
     xml = "sawyer_xyz/sawyer_pick_place_v3.xml"
-
-    def success(self, obs: jax.Array, view: View, episode: Mapping[str, Any]) -> jax.Array:
-        return jnp.linalg.norm(obs[4:7] - episode["target_pos"]) <= 0.07
+    success_radius = 0.07
 
 
 TASKS = (Reach(), Push(), PickPlace())

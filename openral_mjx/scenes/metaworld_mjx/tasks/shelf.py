@@ -10,24 +10,21 @@ and the ``objGeom`` geom's orientation as scipy's quaternion. Success: the obser
 
 from __future__ import annotations
 
-from collections.abc import Mapping
-from typing import Any
-
 import jax
 import jax.numpy as jnp
 
 from openral_mjx.scenes.metaworld_mjx.task import (
-    MirrorTask,
+    FreeObjectTask,
     ModelFacts,
     View,
+    at_rest_height,
     matrix_quat,
-    set_obj_xyz,
 )
 
 SHELF_DROP = (0.0, 0.0, 0.3)
 
 
-class ShelfPlace(MirrorTask):
+class ShelfPlace(FreeObjectTask):
     name = "shelf-place-v3"
     xml = "sawyer_xyz/sawyer_shelf_placing.xml"
     hand_init_pos = (0.0, 0.6, 0.2)
@@ -38,12 +35,11 @@ class ShelfPlace(MirrorTask):
     bodies = ("obj",)
     geoms = ("objGeom",)
     moved_bodies = ("shelf",)
+    min_goal_distance = 0.1
+    success_radius = 0.07
 
-    def accept(self, vec: jax.Array) -> jax.Array:
-        return jnp.linalg.norm(vec[:2] - vec[3:5]) >= 0.1
-
-    def _obj_init(self, facts: ModelFacts, vec: jax.Array) -> jax.Array:
-        return jnp.concatenate([vec[:2], jnp.asarray(facts.rest["body:obj"][2:3], vec.dtype)])
+    def obj_init(self, facts: ModelFacts, vec: jax.Array) -> jax.Array:
+        return at_rest_height(facts, vec[:2], "body:obj", vec.dtype)
 
     def _shelf(self, vec: jax.Array) -> jax.Array:
         return vec[3:6] - jnp.asarray(SHELF_DROP, vec.dtype)
@@ -51,21 +47,14 @@ class ShelfPlace(MirrorTask):
     def place(
         self, facts: ModelFacts, vec: jax.Array, qpos: jax.Array, qvel: jax.Array
     ) -> tuple[jax.Array, jax.Array, dict[str, jax.Array]]:
-        qpos, qvel = set_obj_xyz(facts, qpos, qvel, self._obj_init(facts, vec))
+        qpos, qvel, _ = super().place(facts, vec, qpos, qvel)
         return qpos, qvel, {"shelf": self._shelf(vec)}
 
-    def episode(self, facts: ModelFacts, vec: jax.Array, view: View) -> dict[str, jax.Array]:
-        goal_local = jnp.asarray(facts.site_pos["goal"], vec.dtype)
-        return {
-            "target_pos": goal_local + self._shelf(vec),
-            "obj_init_pos": self._obj_init(facts, vec),
-        }
+    def target(self, facts: ModelFacts, vec: jax.Array, view: View) -> jax.Array:
+        return jnp.asarray(facts.site_pos["goal"], vec.dtype) + self._shelf(vec)
 
     def objects(self, view: View) -> tuple[jax.Array, jax.Array]:
         return view.body_pos("obj"), matrix_quat(view.geom_quat("objGeom"))
-
-    def success(self, obs: jax.Array, view: View, episode: Mapping[str, Any]) -> jax.Array:
-        return jnp.linalg.norm(obs[4:7] - episode["target_pos"]) <= 0.07
 
 
 TASKS = (ShelfPlace(),)

@@ -9,19 +9,16 @@ goal (the reward weights x by 3; the success test does not).
 
 from __future__ import annotations
 
-from collections.abc import Mapping
-from typing import Any
-
 import jax
 import jax.numpy as jnp
 
-from openral_mjx.scenes.metaworld_mjx.task import MirrorTask, ModelFacts, View, matrix_quat
+from openral_mjx.scenes.metaworld_mjx.task import FreeObjectTask, ModelFacts, View, matrix_quat
 
 FREE_QPOS, FREE_DOF = 9, 9  # MetaWorld's `_set_obj_xyz` writes qpos[9:12], qvel[9:15]
 BALL_Z = 0.03  # init_config["obj_init_pos"][-1]
 
 
-class Soccer(MirrorTask):
+class Soccer(FreeObjectTask):
     name = "soccer-v3"
     xml = "sawyer_xyz/sawyer_soccer.xml"
     hand_init_pos = (0.0, 0.6, 0.2)
@@ -31,29 +28,21 @@ class Soccer(MirrorTask):
     goal_high = (0.1, 0.9, 0.0)
     bodies = ("soccer_ball",)
     moved_bodies = ("goal_whole",)
+    # `compute_reward` scales x by 3 for its reward but returns the plain distance
+    success_radius = 0.07
 
-    def accept(self, vec: jax.Array) -> jax.Array:
-        return jnp.linalg.norm(vec[:2] - vec[3:5]) >= 0.15
-
-    def _ball(self, vec: jax.Array) -> jax.Array:
+    def obj_init(self, facts: ModelFacts, vec: jax.Array) -> jax.Array:
         return jnp.concatenate([vec[:2], jnp.full((1,), BALL_Z, vec.dtype)])
 
     def place(
         self, facts: ModelFacts, vec: jax.Array, qpos: jax.Array, qvel: jax.Array
     ) -> tuple[jax.Array, jax.Array, dict[str, jax.Array]]:
-        qpos = qpos.at[FREE_QPOS : FREE_QPOS + 3].set(self._ball(vec))
+        qpos = qpos.at[FREE_QPOS : FREE_QPOS + 3].set(self.obj_init(facts, vec))
         qvel = qvel.at[FREE_DOF : FREE_DOF + 6].set(0.0)
         return qpos, qvel, {"goal_whole": vec[3:6]}
 
-    def episode(self, facts: ModelFacts, vec: jax.Array, view: View) -> dict[str, jax.Array]:
-        return {"target_pos": vec[3:6], "obj_init_pos": self._ball(vec)}
-
     def objects(self, view: View) -> tuple[jax.Array, jax.Array]:
         return view.body_pos("soccer_ball"), matrix_quat(view.body_quat("soccer_ball"))
-
-    def success(self, obs: jax.Array, view: View, episode: Mapping[str, Any]) -> jax.Array:
-        # `compute_reward` scales x by 3 for its reward but returns the plain distance
-        return jnp.linalg.norm(obs[4:7] - episode["target_pos"]) <= 0.07
 
 
 TASKS = (Soccer(),)

@@ -11,13 +11,9 @@ within 0.05 of the goal (its v2 reward is reach-v3's).
 
 from __future__ import annotations
 
-from collections.abc import Mapping
-from typing import Any
-
 import jax
-import jax.numpy as jnp
 
-from openral_mjx.scenes.metaworld_mjx.task import ModelFacts, View, matrix_quat
+from openral_mjx.scenes.metaworld_mjx.task import View, matrix_quat
 from openral_mjx.scenes.metaworld_mjx.tasks.reach_push_pick import Push, Reach
 
 
@@ -28,23 +24,12 @@ class PushWall(Push):
     reset_high = (0.05, 0.65, 0.015, 0.05, 0.9, 0.02)
     goal_low = (-0.05, 0.85, 0.01)
     goal_high = (0.05, 0.9, 0.02)
-
-    def _obj_init(self, facts: ModelFacts, vec: jax.Array) -> jax.Array:
-        # `adjust_initObjPos`: the geom's rest height (body-geom xy offset is zero here)
-        return jnp.concatenate([vec[:2], jnp.asarray(facts.rest["geom:objGeom"][2:3])])
-
-    def episode(self, facts: ModelFacts, vec: jax.Array, view: View) -> dict[str, jax.Array]:
-        z = jnp.asarray(facts.rest["geom:objGeom"][2:3])
-        return {
-            "target_pos": jnp.concatenate([vec[3:5], z]),
-            "obj_init_pos": self._obj_init(facts, vec),
-        }
+    # `adjust_initObjPos`: the geom's rest height (body-geom xy offset is zero here)
+    rest_key = "geom:objGeom"
+    success_radius = 0.07
 
     def objects(self, view: View) -> tuple[jax.Array, jax.Array]:
         return view.geom_pos("objGeom"), matrix_quat(view.geom_quat("objGeom"))
-
-    def success(self, obs: jax.Array, view: View, episode: Mapping[str, Any]) -> jax.Array:
-        return jnp.linalg.norm(obs[4:7] - episode["target_pos"]) <= 0.07
 
 
 class ReachWall(Reach):

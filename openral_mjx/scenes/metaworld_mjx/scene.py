@@ -244,7 +244,8 @@ class MetaWorldMjx(Scene):
         """The episode that MetaWorld's reset builds from random vector `vec`."""
         t = self.logic
         vec = jnp.asarray(vec, jnp.float32)
-        qpos, qvel, moved = t.place(self.facts, vec, self._qpos, self._qvel)
+        hand_qpos, hand_qvel = self._qpos, self._qvel  # the state the hand reset leaves
+        qpos, qvel, moved = t.place(self.facts, vec, hand_qpos, hand_qvel)
         fields = {}
         if t.moved_bodies:
             pos = jnp.stack([moved[b] for b in t.moved_bodies]).astype(jnp.float32)
@@ -257,7 +258,7 @@ class MetaWorldMjx(Scene):
         episode = t.episode(self.facts, vec, view)
         curr = self._current(view)
         if t.observes_before_place:  # the hand reset's state, with the moved bodies in place
-            before = self.backend.init(self._qpos, self._qvel, fields=fields)
+            before = self.backend.init(hand_qpos, hand_qvel, fields=fields)
             curr = self._current(self._view(before))
         obs = jnp.concatenate([curr, curr, self._goal(episode), *self._images(physics)])
         info = {

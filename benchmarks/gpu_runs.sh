@@ -14,15 +14,31 @@ case ${1:?stage} in
         --seeds 1000 --out "$out/metaworld_mirror.jsonl" | tail -1 | cut -c1-200
     done ;;
   mw-warm)     # issue 20: fill Warp's kernel cache and JAX's compilation cache for SUITE/TASKS,
-               # PROCS processes at once (first task alone: the kernels every model shares)
-    tasks=(${TASKS:-$(mw_tasks)}); P=${PROCS:-8}; export XLA_PYTHON_CLIENT_PREALLOCATE=false
-    python3 benchmarks/metaworld_mirror.py mirror --tasks "${tasks[0]}" --seeds 1000 | tail -1 | cut -c1-200
+               # PROCS processes at once (on warp the first task alone: the kernels every model
+               # shares); each process's JSON lines go to $out/warm_I.jsonl
+    tasks=(${TASKS:-$(mw_tasks)}); P=${PROCS:-8}; b=${BACKEND:-warp}; first=0
+    export XLA_PYTHON_CLIENT_PREALLOCATE=false
+    if [ "$b" = warp ]; then
+      python3 benchmarks/metaworld_mirror.py mirror --tasks "${tasks[0]}" --seeds 1000 \
+        --out "$out/warm_first.jsonl" | tail -1 | cut -c1-200; first=1
+    fi
     for i in $(seq 0 $((P - 1))); do
-      part=(); for ((j = 1 + i; j < ${#tasks[@]}; j += P)); do part+=("${tasks[j]}"); done
+      part=(); for ((j = first + i; j < ${#tasks[@]}; j += P)); do part+=("${tasks[j]}"); done
       [ ${#part[@]} -gt 0 ] && python3 benchmarks/metaworld_mirror.py mirror --tasks "${part[@]}" \
-        --seeds 1000 > "$out/warm_$i.log" 2>&1 &
+        --backend "$b" --seeds ${SEEDS:-1000} --out "$out/warm_$i.jsonl" > "$out/warm_$i.log" 2>&1 &
     done
     wait; tail -qn1 "$out"/warm_*.log | cut -c1-160 ;;
+  mw-concurrent)  # issue 20: TASKS (the first 8 of MT50) at once, one process each, on one GPU,
+                  # against the same processes one at a time; MPS=1 under NVIDIA's MPS daemon
+    export XLA_PYTHON_CLIENT_PREALLOCATE=false
+    if [ "${MPS:-0}" = 1 ]; then
+      export CUDA_MPS_PIPE_DIRECTORY=/tmp/mps-pipe CUDA_MPS_LOG_DIRECTORY=/tmp/mps-log
+      mkdir -p /tmp/mps-pipe /tmp/mps-log && nvidia-cuda-mps-control -d || exit 1
+    fi
+    python3 benchmarks/metaworld_mirror.py concurrent --tasks ${TASKS:-$(mw_tasks | cut -d' ' -f1-8)} \
+      --backend ${BACKEND:-warp} --seeds ${SEEDS:-1000} --out "$out/metaworld_concurrent.jsonl" \
+      | tail -1 | cut -c1-400
+    [ "${MPS:-0}" = 1 ] && echo quit | nvidia-cuda-mps-control ;;
   mw-suite)    # issue 20: the whole suite in one process, 1,000 seeds per task (after mw-warm)
     python3 benchmarks/metaworld_mirror.py mirror --tasks ${TASKS:-${SUITE:-mt10}} --backend ${BACKEND:-warp} \
       --seeds 1000 --out "$out/metaworld_mirror_${SUITE:-mt10}.jsonl" | cut -c1-140 ;;

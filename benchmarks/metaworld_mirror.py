@@ -4,6 +4,7 @@ physics ceiling (issue 20's speed figures).
     python benchmarks/metaworld_mirror.py mirror --tasks mt50 --backend warp --seeds 1000
     python benchmarks/metaworld_mirror.py host --tasks mt50 --seeds 32 --workers 16
     python benchmarks/metaworld_mirror.py raw --tasks reach-v3 push-v3 --backend warp --n 4096 65536
+    python benchmarks/metaworld_mirror.py concurrent --tasks reach-v3 push-v3 --backend warp
 
 `mirror`: per task, `--seeds` episodes (seeds 0..) at once with a JAX MLP (3 x 256 SiLU, random
 weights, fused in the episode's scan) on the mirror; episodes/s from the run time (compile
@@ -14,7 +15,10 @@ actions both fail almost always, so every episode runs MetaWorld's full 500 step
 `host-direct`: MetaWorld alone, whole episodes inside the worker processes (no per-step
 exchange), the simulator's own speed on those cores. `raw`: the evaluator (same MLP) against a
 bare `vmap(scan(mjx.step))` on the task's model with each env's own fixed bodies, replaying the
-evaluator's mocap targets and gripper controls from the same reset states.
+evaluator's mocap targets and gripper controls from the same reset states. `concurrent`: one
+process per task on the same GPU; each compiles and warms up, then runs its `--seeds` episodes
+alone, one task after another, and then all at once: episodes/s of the tasks one at a time
+against all together, measured by the same processes on the same compiled programs.
 JSON lines go to `--out` (appended), one per task.
 """
 
@@ -22,6 +26,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 import time
 from pathlib import Path
@@ -245,9 +250,107 @@ def raw(args: argparse.Namespace) -> None:
             scene.close()
 
 
+def _wait_for(path: Path, timeout_s: float = 1800.0) -> None:
+    end = time.monotonic() + timeout_s
+    while not path.exists():
+        if time.monotonic() > end:
+            raise TimeoutError(f"no {path} after {timeout_s:.0f} s")
+        time.sleep(0.005)
+
+
+def child(args: argparse.Namespace) -> None:
+    """One task of `concurrent`: compile and warm up, then a timed run when told to, alone
+    (`go-solo-I`) and then with the others (`go-all`); (start, end) wall clocks to `DIR`."""
+    from openral_mjx.runner.seeds import make_runner
+
+    sync, i, task = args.sync, args.index, args.tasks[0]
+    scene = build_scene("metaworld_mjx", {"task": task}, backend=args.backend, n_envs=args.seeds)
+    policy = mlp(scene)
+    runner = make_runner(scene, policy, n_envs=args.seeds, max_steps=args.max_steps)
+    params, seeds = policy.init(None, None)[0], np.arange(args.seeds)
+    runner.run(params, seeds)  # compile and one untimed run
+    (sync / f"ready-{i}").touch()
+    for phase in (f"solo-{i}", "all"):
+        _wait_for(sync / f"go-{phase}")
+        t0 = time.time()
+        arrays, _ = runner.run(params, seeds)
+        t1 = time.time()
+        diverged = int(np.asarray(arrays["diverged"]).sum())
+        device = str(jax.devices()[0].device_kind)
+        row = {"task": task, "device": device, "t0": t0, "t1": t1, "diverged": diverged}
+        (sync / f"{phase.split('-')[0]}-{i}.json").write_text(json.dumps(row))
+    scene.close()
+
+
+def concurrent(args: argparse.Namespace) -> None:
+    import subprocess
+    import tempfile
+
+    tasks = tasks_of(args.tasks)
+    with tempfile.TemporaryDirectory() as d:
+        sync = Path(d)
+        procs = [
+            subprocess.Popen(
+                [
+                    sys.executable,
+                    __file__,
+                    "child",
+                    "--tasks",
+                    task,
+                    "--backend",
+                    args.backend,
+                    "--seeds",
+                    str(args.seeds),
+                    "--max-steps",
+                    str(args.max_steps),
+                    "--sync",
+                    d,
+                    "--index",
+                    str(i),
+                ]
+            )
+            for i, task in enumerate(tasks)
+        ]
+        for i in range(len(tasks)):
+            _wait_for(sync / f"ready-{i}")
+        for i in range(len(tasks)):
+            (sync / f"go-solo-{i}").touch()
+            _wait_for(sync / f"solo-{i}.json")
+        (sync / "go-all").touch()
+        for i in range(len(tasks)):
+            _wait_for(sync / f"all-{i}.json")
+        codes = [p.wait() for p in procs]
+        solo = [json.loads((sync / f"solo-{i}.json").read_text()) for i in range(len(tasks))]
+        both = [json.loads((sync / f"all-{i}.json").read_text()) for i in range(len(tasks))]
+    episodes = len(tasks) * args.seeds
+    solo_s = sum(r["t1"] - r["t0"] for r in solo)
+    all_s = max(r["t1"] for r in both) - min(r["t0"] for r in both)
+    emit(
+        args.out,
+        {
+            "kind": "concurrent",
+            "backend": args.backend,
+            "device": both[0]["device"],  # from a child: this process never touches the GPU
+            "mps": bool(os.environ.get("CUDA_MPS_PIPE_DIRECTORY")),
+            "tasks": tasks,
+            "seeds_per_task": args.seeds,
+            "max_steps": args.max_steps,
+            "one_at_a_time_episodes_per_s": episodes / solo_s,
+            "all_at_once_episodes_per_s": episodes / all_s,
+            "speedup": solo_s / all_s,
+            "solo_run_s": [r["t1"] - r["t0"] for r in solo],
+            "together_run_s": [r["t1"] - r["t0"] for r in both],
+            "diverged": [r["diverged"] for r in both],
+            "exit_codes": codes,
+        },
+    )
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("what", choices=("mirror", "host", "host-direct", "raw"))
+    parser.add_argument(
+        "what", choices=("mirror", "host", "host-direct", "raw", "concurrent", "child")
+    )
     parser.add_argument("--tasks", nargs="+", default=["mt10"])
     parser.add_argument("--backend", default="warp")
     parser.add_argument("--seeds", type=int, default=1000)
@@ -256,11 +359,15 @@ def main() -> int:
     parser.add_argument("--max-steps", type=int, default=500)
     parser.add_argument("--out", type=Path)
     parser.add_argument("--no-cache", action="store_true", help="JAX's compilation cache off")
+    parser.add_argument("--sync", type=Path, help=argparse.SUPPRESS)  # `child` only
+    parser.add_argument("--index", type=int, help=argparse.SUPPRESS)
     args = parser.parse_args()
     if not args.no_cache:
         enable_compilation_cache()  # as the CLIs do: a repeated run loads its executables
     print(" ".join(["python", *sys.argv]), flush=True)
-    {"mirror": mirror, "host": host, "host-direct": host_direct, "raw": raw}[args.what](args)
+    modes = {"mirror": mirror, "host": host, "host-direct": host_direct, "raw": raw}
+    modes |= {"concurrent": concurrent, "child": child}
+    modes[args.what](args)
     return 0
 
 

@@ -29,7 +29,7 @@ from openral_mjx.evaluation import Evaluation, build_scene, run_evaluation
 from openral_mjx.evaluation.frames import check_frames, record_frames, save_frames
 from openral_mjx.evaluation.replay import EpisodeTrace, choose_seeds, trace_episodes
 from openral_mjx.evaluation.run import check_run
-from openral_mjx.evaluation.suite import evaluate_suite, format_tasks
+from openral_mjx.evaluation.suite import evaluate_suite, format_tasks, mps_running
 from openral_mjx.evaluation.sweep import parse_sweep, run_sweep
 from openral_mjx.physics import BACKEND_NAMES
 from openral_mjx.policies import POLICIES
@@ -38,7 +38,7 @@ from openral_mjx.report import EvalReport, load_report, save_report
 from openral_mjx.report.sweep import SweepReport, save_sweep
 from openral_mjx.robots import ROBOTS
 from openral_mjx.runner import check_batching, processes
-from openral_mjx.runner.compile_cache import enable_compilation_cache
+from openral_mjx.runner.compile_cache import default_cache_dir, enable_compilation_cache
 from openral_mjx.scenes import (
     SCENES,
     Scene,
@@ -121,6 +121,10 @@ class EvalArgs:
     """Run as this many processes on this host, each driving an equal share of the GPUs, as one
     job (jax.distributed): on warp, one process per GPU scales where one process for all does
     not (see README)."""
+    task_processes: int = 1
+    """With --suite: run this many tasks at once, one process each. On one GPU it pays only
+    under NVIDIA's MPS daemon (nvidia-cuda-mps-control -d): 16 MetaWorld tasks at 1,000 envs
+    ran 3.6x faster together than one at a time with MPS, 0.94x without (8 tasks)."""
     out: Path | None = None
     """Report path (default: results/SCENE_POLICY_TIMESTAMP.json)."""
     factor_bins: int = 5
@@ -220,6 +224,8 @@ def validate(args: EvalArgs) -> EvalPlan:
         )
     if args.suite is not None:
         _check_suite(args, want_video)
+    elif args.task_processes != 1:
+        raise ConfigError("--task-processes runs the tasks of a --suite at once: give --suite")
     _check_randomize(args, want_video)
     out = args.out or _default_out(args)
     check_writable(out)
@@ -321,6 +327,8 @@ def _check_suite(args: EvalArgs, want_video: bool) -> None:
     or frames."""
     if args.task is not None or args.target_halfwidth is not None:
         raise ConfigError("--suite runs every task of the suite: drop --task/--target-halfwidth")
+    if args.task_processes < 1:
+        raise ConfigError(f"--task-processes must be >= 1, got {args.task_processes}")
     if want_video or args.plots or args.frames:
         raise ConfigError("--suite writes one report over its tasks: drop --video/--plots/--frames")
     scene_suite(args.scene, args.suite)
@@ -440,12 +448,21 @@ def execute(
             progress.update(bar, description=f"episodes{rate}", completed=done, total=total)
 
         if args.suite is not None:
+            together = args.task_processes > 1
 
             def on_task(i: int, n: int, name: str) -> None:
-                progress.update(
-                    bar, description=f"task {i + 1}/{n} {name}", completed=0, total=None
-                )
+                if together:  # called as each task ends, `i` of `n` done
+                    progress.update(bar, description=f"tasks done ({name})", completed=i, total=n)
+                else:
+                    progress.update(
+                        bar, description=f"task {i + 1}/{n} {name}", completed=0, total=None
+                    )
 
+            if together and plan.backend in ("mjx", "warp") and not mps_running():
+                stderr.print(
+                    f"note: --task-processes {args.task_processes} without NVIDIA's MPS daemon: "
+                    "processes take turns on a GPU (start it: nvidia-cuda-mps-control -d)"
+                )
             return evaluate_suite(
                 args.scene,
                 args.suite,
@@ -456,6 +473,12 @@ def execute(
                 max_steps=args.max_steps,
                 options=plan.options,
                 command=plan.command,
+                backend=plan.backend,
+                threads=args.threads,
+                contacts_per_env=args.contacts_per_env,
+                devices=args.devices,
+                task_processes=args.task_processes,
+                compile_cache=default_cache_dir() if args.compile_cache else None,
                 on_task=on_task,
                 on_chunk=lambda done, total, _: progress.update(bar, completed=done, total=total),
             )

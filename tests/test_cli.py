@@ -188,6 +188,11 @@ def test_list(monkeypatch, capsys):
             "--suite runs every task of the suite: drop --task",
         ),
         (["--scene", "libero", "--suite", "libero_10", "--plots"], "drop --video/--plots"),
+        (["--task-processes", "2"], "--task-processes runs the tasks of a --suite at once"),
+        (
+            ["--scene", "metaworld", "--suite", "mt10", "--task-processes", "0"],
+            "--task-processes must be >= 1, got 0",
+        ),
         (["--scene", "libero", "--task", "libero_10/10"], "index 0..9"),
         (["--scene", "robosuite", "--task", "Stack"], "unknown robosuite task 'Stack'"),
     ],

@@ -6,6 +6,8 @@ tests are skipped until `python -m openral_mjx.host.envs create metaworld` has r
 
 from __future__ import annotations
 
+import contextlib
+
 import jax
 import numpy as np
 import pytest
@@ -161,3 +163,31 @@ def test_randomized_mirror_varies_the_object_only():
     for _ in range(2):
         state = step(state, jax.numpy.ones((3, 4)))
     np.testing.assert_allclose(state.info[INFO_KEY]["obs"][:, :3], hand, atol=2e-3)
+
+
+def test_suite_plays_each_tasks_own_expert_alone_or_in_processes(monkeypatch):
+    """A suite on the mirror builds MetaWorld's expert for each task (it is bound to one: the
+    pick-place expert, not reach's), and `task_processes` runs the same episodes: each task's
+    seeds equal a run of that task alone."""
+    from openral_mjx.evaluation import build_scene, evaluate
+    from openral_mjx.evaluation import suite as suite_module
+
+    tasks = ["reach-v3", "pick-place-v3"]  # reach's expert fails pick-place on these seeds
+    monkeypatch.setattr(suite_module, "scene_suite", lambda scene, suite: tasks)
+    run = {"n_envs": 2, "n_episodes": 2, "max_steps": 60}
+
+    def outcomes(report):
+        return [
+            (e["metadata"]["task"], e["success"], e["steps"]) for e in report.to_dict()["episodes"]
+        ]
+
+    args = ("metaworld_mjx", "mt10", "metaworld-expert")
+    in_turn = suite_module.evaluate_suite(*args, backend="c", threads=2, **run)
+    together = suite_module.evaluate_suite(*args, backend="c", threads=1, task_processes=2, **run)
+    scene = build_scene("metaworld_mjx", {"task": "pick-place-v3"}, backend="c", n_envs=2)
+    with contextlib.closing(scene):
+        alone = evaluate(scene, "metaworld-expert", **run)
+    assert outcomes(in_turn) == outcomes(together)
+    assert outcomes(in_turn)[2:] == outcomes(alone)
+    assert [r.task for r in in_turn.per_task] == tasks
+    assert in_turn.per_task[1].successes == alone.successes

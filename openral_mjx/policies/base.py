@@ -43,6 +43,9 @@ class Policy:
     # policy server's pipe): the runner gives it one device's batch, never shards running
     # concurrently on several devices.
     one_device: bool = False
+    # Built for its scene's task (a task's scripted expert): a suite builds it again for each
+    # task rather than sharing it.
+    per_task: bool = False
 
     def devices(self, devices: Sequence[jax.Device]) -> tuple[jax.Device, ...]:
         """The devices a run of this policy uses, of those offered."""

@@ -97,7 +97,7 @@ def _mirror_expert(scene: Any) -> Policy:
         )
         return action, pstate
 
-    return Policy("metaworld-expert", init, act, close=expert.close)
+    return Policy("metaworld-expert", init, act, close=expert.close, per_task=True)
 
 
 def metaworld_expert(scene: Any, arg: str | None) -> Policy:

@@ -6,6 +6,11 @@ set -uo pipefail
 out=${OUT:-results/gpu}; mkdir -p "$out"
 TIMEFORMAT='wall %R s'
 ev() { local name=$1; shift; { time python3 -m openral_mjx.eval "$@" --out "$out/$name.json" --no-breakdown; } 2>&1 | grep -v "^  " | tail -4; }
+# NVIDIA's MPS daemon (MPS=1): lets processes on one GPU run their kernels side by side
+mps_start() { [ "${MPS:-0}" = 1 ] || return 0
+  export CUDA_MPS_PIPE_DIRECTORY=/tmp/mps-pipe CUDA_MPS_LOG_DIRECTORY=/tmp/mps-log
+  mkdir -p /tmp/mps-pipe /tmp/mps-log && nvidia-cuda-mps-control -d; }
+mps_stop() { [ "${MPS:-0}" = 1 ] && echo quit | nvidia-cuda-mps-control; return 0; }
 mw_tasks() { python3 -c "from openral_mjx.scenes import scene_suite as s; print(*s('metaworld_mjx', '${SUITE:-mt10}'))"; }
 case ${1:?stage} in
   mw-mirror)   # issue 20: MetaWorld mirror, SUITE (mt10) or TASKS x 1,000 seeds, JAX MLP in the loop
@@ -30,15 +35,22 @@ case ${1:?stage} in
     wait; tail -qn1 "$out"/warm_*.log | cut -c1-160 ;;
   mw-concurrent)  # issue 20: TASKS (the first 8 of MT50) at once, one process each, on one GPU,
                   # against the same processes one at a time; MPS=1 under NVIDIA's MPS daemon
-    export XLA_PYTHON_CLIENT_PREALLOCATE=false
-    if [ "${MPS:-0}" = 1 ]; then
-      export CUDA_MPS_PIPE_DIRECTORY=/tmp/mps-pipe CUDA_MPS_LOG_DIRECTORY=/tmp/mps-log
-      mkdir -p /tmp/mps-pipe /tmp/mps-log && nvidia-cuda-mps-control -d || exit 1
-    fi
+    export XLA_PYTHON_CLIENT_PREALLOCATE=false; mps_start || exit 1
     python3 benchmarks/metaworld_mirror.py concurrent --tasks ${TASKS:-$(mw_tasks | cut -d' ' -f1-8)} \
       --backend ${BACKEND:-warp} --seeds ${SEEDS:-1000} --out "$out/metaworld_concurrent.jsonl" \
       | tail -1 | cut -c1-400
-    [ "${MPS:-0}" = 1 ] && echo quit | nvidia-cuda-mps-control ;;
+    mps_stop ;;
+  mw-suite-cli)  # issue 20: what a user runs, SUITE (mt50) x 1,000 seeds through eval --suite, the
+                 # random MLP as a checkpoint, TASK_PROCS tasks at once (MPS=1 under MPS)
+    mps_start || exit 1
+    python3 benchmarks/metaworld_mirror.py save-mlp --out /tmp/mw_mlp
+    n=${TASK_PROCS:-16}; s=${SUITE:-mt50}
+    { time python3 -m openral_mjx.eval --scene metaworld_mjx --suite "$s" --backend warp \
+      --n-envs 1000 --policy mlp:/tmp/mw_mlp --task-processes "$n" --out /tmp/mw_suite.json \
+      --no-breakdown; } 2>&1 | grep -v "^  " | tail -4
+    python3 -c "import json,sys; d=json.load(open(sys.argv[1])); d['episodes']=len(d['episodes'])
+json.dump(d, open(sys.argv[2], 'w'), indent=1)" /tmp/mw_suite.json "$out/mw_suite_${s}_k$n.json"
+    mps_stop ;;
   mw-suite)    # issue 20: the whole suite in one process, 1,000 seeds per task (after mw-warm)
     python3 benchmarks/metaworld_mirror.py mirror --tasks ${TASKS:-${SUITE:-mt10}} --backend ${BACKEND:-warp} \
       --seeds 1000 --out "$out/metaworld_mirror_${SUITE:-mt10}.jsonl" | cut -c1-140 ;;

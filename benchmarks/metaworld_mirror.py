@@ -5,6 +5,7 @@ physics ceiling (issue 20's speed figures).
     python benchmarks/metaworld_mirror.py host --tasks mt50 --seeds 32 --workers 16
     python benchmarks/metaworld_mirror.py raw --tasks reach-v3 push-v3 --backend warp --n 4096 65536
     python benchmarks/metaworld_mirror.py concurrent --tasks reach-v3 push-v3 --backend warp
+    python benchmarks/metaworld_mirror.py save-mlp --out /tmp/mw_mlp
 
 `mirror`: per task, `--seeds` episodes (seeds 0..) at once with a JAX MLP (3 x 256 SiLU, random
 weights, fused in the episode's scan) on the mirror; episodes/s from the run time (compile
@@ -36,7 +37,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from openral_mjx.evaluation import build_scene, run_evaluation
-from openral_mjx.policies.mlp import MlpConfig, init_params, mlp_policy
+from openral_mjx.policies.mlp import MlpConfig, init_params, mlp_policy, save_mlp
 from openral_mjx.runner import run_seeds
 from openral_mjx.runner.compile_cache import enable_compilation_cache
 from openral_mjx.scenes import scene_suite
@@ -52,15 +53,26 @@ def tasks_of(names: list[str]) -> list[str]:
     return out
 
 
-def mlp(scene):
-    config = MlpConfig(
+def mlp_config() -> MlpConfig:
+    return MlpConfig(
         obs_size=39,
         action_size=4,
         action_offset=(0.0,) * 4,
         action_scale=(1.0,) * 4,
         hidden=HIDDEN,
     )
+
+
+def mlp(scene):
+    config = mlp_config()
     return mlp_policy(config, init_params(config, jax.random.PRNGKey(0)))
+
+
+def save_random_mlp(args: argparse.Namespace) -> None:
+    """The same random MLP as a checkpoint (`--out DIR`), for `eval --policy mlp:DIR`."""
+    config = mlp_config()
+    save_mlp(args.out, config, init_params(config, jax.random.PRNGKey(0)))
+    print(f"saved {args.out}")
 
 
 def emit(out: Path | None, row: dict) -> None:
@@ -349,7 +361,8 @@ def concurrent(args: argparse.Namespace) -> None:
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument(
-        "what", choices=("mirror", "host", "host-direct", "raw", "concurrent", "child")
+        "what",
+        choices=("mirror", "host", "host-direct", "raw", "concurrent", "child", "save-mlp"),
     )
     parser.add_argument("--tasks", nargs="+", default=["mt10"])
     parser.add_argument("--backend", default="warp")
@@ -366,7 +379,7 @@ def main() -> int:
         enable_compilation_cache()  # as the CLIs do: a repeated run loads its executables
     print(" ".join(["python", *sys.argv]), flush=True)
     modes = {"mirror": mirror, "host": host, "host-direct": host_direct, "raw": raw}
-    modes |= {"concurrent": concurrent, "child": child}
+    modes |= {"concurrent": concurrent, "child": child, "save-mlp": save_random_mlp}
     modes[args.what](args)
     return 0
 

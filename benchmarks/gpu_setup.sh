@@ -26,6 +26,12 @@ if [ -f /tmp/warp-parts/NAME ] && [ -f /tmp/warp-parts/part.00 ] && [ -f /tmp/wa
    && python3 -m pip install -q --no-index --no-deps --no-compile --target /tmp/site "$(cat NAME)")
   touch /tmp/site/.warp-done
 fi
+# Warp's kernel cache from an earlier machine (same warp-lang, same GPU arch), if carried as
+# .warpcache/warpcache.tgz: saves the first run's ~5 min kernel build. Warp checks each
+# kernel's hash, so a stale entry is rebuilt, never used.
+if [ -f .warpcache/warpcache.tgz ] && [ ! -d ~/.cache/warp ]; then
+  mkdir -p ~/.cache && tar xzf .warpcache/warpcache.tgz -C ~/.cache
+fi
 # MetaWorld itself (mujoco 3.3.0) for the host baseline and the mirror's assets: carry .gpumw
 # (see benchmarks/metaworld_mirror.py). Its packages go to /tmp/mwsite, put first on the path
 # of the system's python (numpy, scipy) by a wrapper: the worker environment's interpreter.

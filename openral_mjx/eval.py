@@ -352,6 +352,7 @@ def _reproduce(args: EvalArgs, backend: str, out: Path) -> str:
         ("--contacts-per-env", args.contacts_per_env),
         ("--devices", args.devices),
         ("--processes", args.processes if args.processes != 1 else None),
+        ("--task-processes", args.task_processes if args.task_processes != 1 else None),
         ("--factor-bins", args.factor_bins if args.factor_bins != 5 else None),
         ("--frames", args.frames or None),
         ("--batching", args.batching if args.batching != "auto" else None),

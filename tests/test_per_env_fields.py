@@ -46,8 +46,9 @@ def mocap_path(t: int) -> np.ndarray:
     return np.array([0.3 - 0.012 * (t + 1), 0.0, 0.05])
 
 
-def reference(model: mujoco.MjModel) -> np.ndarray:
-    """Ball positions (envs, steps, 3) stepped by MuJoCo C on per-env model copies."""
+def reference(model: mujoco.MjModel, after_step: bool = False) -> np.ndarray:
+    """Ball positions (envs, steps, 3) stepped by MuJoCo C on per-env model copies: as
+    `mj_step` leaves them, or with `after_step` those of the state it ends in."""
     out = np.zeros((len(POSTS), STEPS, 3))
     post = model.body("post").id
     for i, x in enumerate(POSTS):
@@ -59,17 +60,21 @@ def reference(model: mujoco.MjModel) -> np.ndarray:
             d.mocap_pos[0] = mocap_path(t)
             d.ctrl[:] = 0.1
             mujoco.mj_step(m, d, nstep=SUBSTEPS)
+            if after_step:
+                mujoco.mj_kinematics(m, d)
             out[i, t] = d.xpos[m.body("ball").id]
     return out
 
 
-def simulate(backend_name: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def simulate(
+    backend_name: str, after_step: bool = False
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(ball positions (envs, steps, 3), post positions read back, fields read back)."""
     spec = mujoco.MjSpec.from_string(XML)
     backend = make_backend(
         backend_name,
         spec,
-        QuantitySpec(bodies=("ball", "post"), geoms=("ball",)),
+        QuantitySpec(bodies=("ball", "post"), geoms=("ball",), poses_after_step=after_step),
         SUBSTEPS,
         PhysicsSettings(threads=1),
     )
@@ -115,6 +120,19 @@ def test_per_env_body_pos_and_mocap(backend, expected, monkeypatch):
     np.testing.assert_array_equal(fields[:, 0], POSTS.astype(np.float32))  # carried along
     tol = 1e-5 if backend == "c" else 5e-3  # c: the same engine; mjx/warp: float32, own solver
     np.testing.assert_allclose(balls, expected, atol=tol)
+
+
+@pytest.mark.parametrize("backend", ["c", "mjx"])
+def test_poses_after_step_are_those_of_the_state_the_step_ends_in(backend, monkeypatch):
+    """`poses_after_step`: the poses MuJoCo's kinematics gives the stepped state, one physics
+    step later than `mj_step` leaves them; the simulation itself does not change."""
+    monkeypatch.setattr(c_backend, "COPY_BUDGET", 0)  # c: per-env models, in two slices
+    m = mujoco.MjModel.from_xml_string(XML)
+    balls, _, _ = simulate(backend, after_step=True)
+    tol = 1e-5  # measured: c 0 (the same engine), mjx 6e-8
+    np.testing.assert_allclose(balls, reference(m, after_step=True), atol=tol)
+    stale = np.abs(reference(m) - reference(m, after_step=True)).max()
+    assert stale > 100 * tol, stale  # 3 mm: the readouts differ (else the test could not fail)
 
 
 def test_c_model_copies_forget_fields_no_longer_given():

@@ -29,12 +29,18 @@ class QuantitySpec:
     `sensors` are laser scanners (`raycast.LaserSpec`), depth cameras (`raycast.DepthSpec`)
     and RGB cameras (`RgbSpec`, rendered on `warp` only); their readings appear in
     `Quantities.sensors` under each spec's key.
+
+    `poses_after_step`: after a step, report the poses of the state the step ends in (as an
+    `mj_forward` after `mj_step` would), not those `mj_step` leaves in MuJoCo's data (computed
+    before its last integration, one physics step earlier: the default). The simulation itself
+    is the same either way; only what is read from it moves.
     """
 
     bodies: tuple[str, ...] = ()
     sites: tuple[str, ...] = ()
     sensors: tuple[SensorSpec, ...] = ()
     geoms: tuple[str, ...] = ()
+    poses_after_step: bool = False
 
 
 @dataclasses.dataclass(frozen=True)

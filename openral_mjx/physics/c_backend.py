@@ -242,6 +242,8 @@ class CBackend(PhysicsBackend):
                     nstep=self.n_substeps,
                 )
                 last, sens = out[:, -1], sens[:, -1]
+                if self.quantity_spec.poses_after_step:
+                    sens = self._poses_after(self._model, last)
             else:  # per-env models, a slice of envs at a time (see `_models`)
                 last = np.empty_like(states)
                 sens = np.empty((n, self._nsens))
@@ -258,12 +260,29 @@ class CBackend(PhysicsBackend):
                         nstep=self.n_substeps,
                     )
                     last[a:b], sens[a:b] = out[:, -1], s_out[:, -1]
+                    if self.quantity_spec.poses_after_step:
+                        sens[a:b] = self._poses_after(models, last[a:b])
         last = np.ascontiguousarray(last)
         # MuJoCo resets a state it finds unstable (time goes back to 0): that env diverged.
         expected = states[:, 0] + self.n_substeps * self._model.opt.timestep
         ok = np.abs(last[:, 0] - expected) < 0.5 * self._model.opt.timestep
         res = self._readout(last, np.ascontiguousarray(sens), ok)
         return tuple(o.reshape(lead + o.shape[1:]) for o in res)
+
+    def _poses_after(
+        self, models: mujoco.MjModel | list[mujoco.MjModel], states: np.ndarray
+    ) -> np.ndarray:
+        """The pose sensors of `states` themselves (kinematics, then the position sensors):
+        `rollout`'s sensor data, like `mj_step`'s, is computed before the last integration."""
+        d = self._datas[0]  # the pool is idle here (under `_lock`)
+        out = np.empty((len(states), self._nsens))
+        for i, state in enumerate(states):
+            m = models[i] if isinstance(models, list) else models
+            mujoco.mj_setState(m, d, np.ascontiguousarray(state), _FULL)
+            mujoco.mj_kinematics(m, d)
+            mujoco.mj_sensorPos(m, d)
+            out[i] = d.sensordata
+        return out
 
     # ---- JAX side --------------------------------------------------------------------------
 

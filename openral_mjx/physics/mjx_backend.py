@@ -114,6 +114,8 @@ class MjxBackend(PhysicsBackend):
             d = d.replace(mocap_pos=mocap[0], mocap_quat=mocap[1])
         mx = self.model(state.fields)
         d = jax.lax.fori_loop(0, self.n_substeps, lambda _, x: mjx.step(mx, x), d)
+        if self.quantity_spec.poses_after_step:  # the next step's forward pass redoes them
+            d = self._kinematics(mx, d, state.fields)
         d, q = self._readout(d, state.fields)
         return PhysicsState(
             data=d, quantities=q.replace(ok=q.ok & state.quantities.ok), fields=state.fields

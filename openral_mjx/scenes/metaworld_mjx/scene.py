@@ -17,11 +17,12 @@ two on the same initial states. What the scene reproduces of MetaWorld's `Sawyer
   ``(a[3], -a[3])``; 5 physics steps of 2.5 ms per control step.
 - **Observation**: MetaWorld's 39 floats: hand position, gripper opening, the objects' poses
   (padded to 14), the previous step's 18, and the goal (zeros when not observable), clipped to
-  MetaWorld's observation box after every step (not at reset, as MetaWorld). On `warp`, RGB
-  images of MetaWorld's cameras may follow (`obs_rgb_cameras`, see `sensor_obs`), rendered by
-  MuJoCo-Warp from the poses MetaWorld's renderer would draw after the step (those of the last
-  physics step's start: MuJoCo's `mj_step` leaves them so, and MetaWorld renders without a
-  further `mj_forward`).
+  MetaWorld's observation box after every step (not at reset, as MetaWorld); the poses are
+  those of the state the step ends in (MetaWorld calls `mj_forward` after its physics steps;
+  `poses_after_step`). On `warp`, RGB images of MetaWorld's cameras may follow
+  (`obs_rgb_cameras`, see `sensor_obs`), rendered by MuJoCo-Warp from those poses.
+- **Contacts**: one per colliding geom pair, as under the mujoco 3.3 MetaWorld pins
+  (`assets.SINGLE_CONTACT`).
 - **Success**: the task's predicate, which ends the episode; MetaWorld's limit is 500 steps.
 """
 
@@ -148,7 +149,8 @@ class MetaWorldMjx(Scene):
         self.backend = make_backend(
             backend,
             self.spec,
-            QuantitySpec(bodies, sites, geoms=geoms, sensors=sensors),
+            # MetaWorld's step ends with `mj_forward`: it observes the state it ends in
+            QuantitySpec(bodies, sites, geoms=geoms, sensors=sensors, poses_after_step=True),
             mw.FRAME_SKIP,
             settings,
         )

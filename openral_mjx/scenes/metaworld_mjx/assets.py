@@ -23,13 +23,6 @@ ENV = "metaworld"
 # MetaWorld's `reset_mocap_welds`: the weld holding the hand to its mocap body gets this data
 # (anchor, relative pose with quaternion (-1, 0, 0, 0), torque scale 5) before any simulation.
 WELD_DATA = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, -1.0, 0.0, 0.0, 0.0, 5.0)
-# MetaWorld runs on mujoco 3.3, whose convex collisions (e.g. the gripper's boxes against a
-# door's cylinder) make one contact per geom pair: several ("multiccd") was an opt-in enable
-# flag there, off in MetaWorld's XML. mujoco >= 4 makes several by default (mjDSBL_MULTICCD
-# turns that off); with them the hand slides along surfaces that stop it in MetaWorld
-# (door-open: the expert's hand, pressed against the door, jams in MetaWorld and slips past on
-# the mirror, one-sided outcome disagreement). 0 where this mujoco has no such flag.
-SINGLE_CONTACT = int(getattr(mujoco.mjtDisableBit, "mjDSBL_MULTICCD", 0))
 
 
 @functools.cache
@@ -52,14 +45,11 @@ def package_dir() -> Path:
 
 
 def load_spec(xml: str) -> mujoco.MjSpec:
-    """The task's model as MetaWorld sets it up before its first reset (mocap welds reset),
-    colliding as under the mujoco MetaWorld pins (see `SINGLE_CONTACT`)."""
+    """The task's model as MetaWorld sets it up before its first reset (mocap welds reset)."""
     path = package_dir() / "assets" / xml
     if not path.is_file():
         raise ConfigError(f"MetaWorld asset {xml!r} not found under {path.parent}")
     spec = mujoco.MjSpec.from_file(str(path))
-    if SINGLE_CONTACT:
-        spec.option.disableflags |= SINGLE_CONTACT
     for eq in spec.equalities:
         if eq.type == mujoco.mjtEq.mjEQ_WELD:
             data = np.array(eq.data, np.float64)  # mujoco >= 4 has a 12th entry: kept

@@ -23,8 +23,8 @@ two on the same initial states. What the scene reproduces of MetaWorld's `Sawyer
   (`obs_rgb_cameras`, see `sensor_obs`), rendered by MuJoCo-Warp from those poses.
 - **Contacts**: as mujoco 4 makes them from MetaWorld's XML. mujoco 4 makes several contacts
   per convex pair by default where MetaWorld's mujoco 3.3 made one; turning that off
-  (`mjDSBL_MULTICCD`) brought door-open to 99.6% agreement but shelf-place down to 87.8% and
-  box-close's lean to the other side (BENCHMARKS.md), so the model keeps mujoco 4's default.
+  (`mjDSBL_MULTICCD`) brought door-open to 99.6% agreement and stick-pull to 97.4% but turned
+  box-close's lean around (BENCHMARKS.md), so the model keeps mujoco 4's default.
 - **Success**: the task's predicate, which ends the episode; MetaWorld's limit is 500 steps.
 """
 

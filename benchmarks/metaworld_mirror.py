@@ -27,7 +27,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import sys
 import time
 from pathlib import Path
@@ -37,6 +36,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from openral_mjx.evaluation import build_scene, run_evaluation
+from openral_mjx.evaluation.suite import mps_running
 from openral_mjx.policies.mlp import MlpConfig, init_params, mlp_policy, save_mlp
 from openral_mjx.runner import run_seeds
 from openral_mjx.runner.compile_cache import enable_compilation_cache
@@ -343,7 +343,7 @@ def concurrent(args: argparse.Namespace) -> None:
             "kind": "concurrent",
             "backend": args.backend,
             "device": both[0]["device"],  # from a child: this process never touches the GPU
-            "mps": bool(os.environ.get("CUDA_MPS_PIPE_DIRECTORY")),
+            "mps": mps_running(),
             "tasks": tasks,
             "seeds_per_task": args.seeds,
             "max_steps": args.max_steps,

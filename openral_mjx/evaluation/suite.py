@@ -81,8 +81,13 @@ def evaluate_suite(
         "contacts_per_env": contacts_per_env,
         "devices": devices,
     }
-    run = {"n_envs": n_envs, "n_episodes": n_episodes, "seed": seed, "max_steps": max_steps}
-    run["command"] = command
+    run = {
+        "n_envs": n_envs,
+        "n_episodes": n_episodes,
+        "seed": seed,
+        "max_steps": max_steps,
+        "command": command,
+    }
     if task_processes > 1:
         return _suite_in_processes(
             scene, suite, policy, tasks, options, build, run, task_processes, compile_cache, on_task

@@ -70,6 +70,21 @@ json.dump(d, open(sys.argv[2], 'w'), indent=1)" /tmp/mw_suite.json "$out/mw_suit
     python3 -m openral_mjx.evaluation.metaworld_agreement --tasks ${TASKS:-reach-v3 push-v3 \
       pick-place-v3 door-open-v3 drawer-close-v3} --backend ${BACKEND:-warp} --seeds 500 \
       --traj-seeds 8 --workers "$(nproc)" --out "$out/metaworld_agreement_gpu.json" ;;
+  mw-agree-c)  # issue 20: the agreement table on `c` on this machine's CPU cores, SUITE (mt50)
+               # or TASKS: PROCS processes side by side, each on its own cores (taskset) with its
+               # MetaWorld workers; one JSON per task in AGREE_DIR, a task already there skipped
+               # (the stage can run in the background over several calls and be started again)
+    export JAX_PLATFORMS=cpu; d=${AGREE_DIR:-/tmp/agree}; mkdir -p "$d"
+    tasks=(${TASKS:-$(SUITE=${SUITE:-mt50} mw_tasks)}); P=${PROCS:-4}; per=$(( $(nproc) / P ))
+    for i in $(seq 0 $((P - 1))); do
+      ( for ((j = i; j < ${#tasks[@]}; j += P)); do
+          t=${tasks[j]}; [ -f "$d/$t.json" ] && continue
+          taskset -c $((i * per))-$((i * per + per - 1)) python3 -m \
+            openral_mjx.evaluation.metaworld_agreement --tasks "$t" --backend c --seeds ${SEEDS:-500} \
+            --traj-seeds 4 --workers "$per" --out "$d/$t.json" >> "$d/log_$i.txt" 2>&1
+        done ) &
+    done
+    wait; ls "$d"/*.json | wc -l ;;
   rand-test)   # issue 22: per-env physics fields on mjx and warp against MuJoCo C (GPU)
     python3 -m pytest -q -p no:cacheprovider tests/test_per_env_fields.py -m "slow or not slow" \
       -k physics 2>&1 | tail -3 ;;

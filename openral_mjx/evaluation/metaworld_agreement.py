@@ -24,6 +24,7 @@ import contextlib
 import json
 import math
 import os
+import subprocess
 import sys
 import tempfile
 from collections.abc import Iterator, Sequence
@@ -33,6 +34,7 @@ from typing import Any
 import jax
 import numpy as np
 
+from openral_mjx.core.errors import ConfigError
 from openral_mjx.core.files import write_text_atomic
 from openral_mjx.host.envs import ensure_env
 from openral_mjx.host.pool import Worker
@@ -46,15 +48,26 @@ FACTORY = "openral_mjx.host.metaworld_env:make"
 TIMEOUT_S = 600.0
 
 
+# Which MuJoCo MetaWorld's code runs on: its pinned one (3.3.0, in its own environment), or
+# this process's (the mirror's engine) put first on the worker's path. The second separates the
+# mirror's task logic, which must then agree exactly, from the engine version.
+ENGINES = ("metaworld", "ours")
+
+
 @contextlib.contextmanager
-def host_workers(task: str, n: int) -> Iterator[list[Worker]]:
-    """`n` worker processes, each holding MetaWorld's env for `task` (closed on exit)."""
+def host_workers(task: str, n: int, engine: str = "metaworld") -> Iterator[list[Worker]]:
+    """`n` worker processes, each holding MetaWorld's env for `task` on `engine`'s MuJoCo
+    (closed on exit)."""
+    if engine not in ENGINES:
+        raise ConfigError(f"unknown MetaWorld engine {engine!r}; valid: {', '.join(ENGINES)}")
     python = ensure_env(ENV)
     logs = Path(tempfile.mkdtemp(prefix="openral_mjx_agreement_"))
+    first = [_our_mujoco_path(python, logs)] if engine == "ours" else []
     workers: list[Worker] = []
     try:
         for i in range(n):
-            workers.append(Worker(python, {}, logs / f"worker{i}.log", name=f"metaworld {i}"))
+            log = logs / f"worker{i}.log"
+            workers.append(Worker(python, {}, log, name=f"metaworld {i}", path_first=first))
         init = {"op": "init", "factory": FACTORY, "kwargs": {"task": task}}
         # built side by side: each start imports MetaWorld and compiles its model (~2 s)
         with concurrent.futures.ThreadPoolExecutor(n) as pool:
@@ -63,6 +76,34 @@ def host_workers(task: str, n: int) -> Iterator[list[Worker]]:
     finally:
         for w in workers:
             w.close()
+
+
+def _our_mujoco_path(python: str, root: Path) -> str:
+    """A directory holding only a link to this process's `mujoco` package, for the worker's
+    path; its interpreter must be this one's Python version (the package is compiled)."""
+    import mujoco
+
+    theirs = subprocess.run(
+        [python, "-c", "import sys; print(*sys.version_info[:2], sep='.')"],
+        capture_output=True,
+        text=True,
+        check=True,
+    ).stdout.strip()
+    ours = "{}.{}".format(*sys.version_info[:2])
+    if theirs != ours:
+        raise ConfigError(
+            f"MetaWorld on this process's mujoco needs its worker environment on Python {ours}; "
+            f"{python} is Python {theirs}"
+        )
+    shim = root / "mujoco_path"
+    shim.mkdir()
+    (shim / "mujoco").symlink_to(Path(mujoco.__file__).resolve().parent)
+    return str(shim)
+
+
+def host_versions(workers: Sequence[Worker]) -> dict[str, str]:
+    """The MetaWorld and MuJoCo versions the workers run."""
+    return workers[0].call({"op": "call", "method": "versions", "kwargs": {}}, TIMEOUT_S)
 
 
 def host_rollouts(workers: Sequence[Worker], calls: Sequence[dict[str, Any]]) -> list[dict]:
@@ -163,12 +204,19 @@ def outcome_agreement(
 
 
 def task_row(
-    task: str, backend: str, n_seeds: int, traj_seeds: int, workers: int
+    task: str,
+    backend: str,
+    n_seeds: int,
+    traj_seeds: int,
+    workers: int,
+    engine: str = "metaworld",
 ) -> dict[str, Any]:
-    """The agreement table's row for `task` (seeds 0..n_seeds-1; 0..traj_seeds-1 for physics)."""
+    """The agreement table's row for `task` (seeds 0..n_seeds-1; 0..traj_seeds-1 for physics),
+    MetaWorld running on `engine`'s MuJoCo."""
     scene = make_scene("metaworld_mjx", {"task": task}, backend=backend)
     try:
-        with host_workers(task, workers) as pool:
+        with host_workers(task, workers, engine) as pool:
+            versions = host_versions(pool)
             traj = trajectory_agreement(scene, pool, np.arange(traj_seeds))
             out = outcome_agreement(scene, pool, np.arange(n_seeds)) if n_seeds else None
     finally:
@@ -176,6 +224,8 @@ def task_row(
     row: dict[str, Any] = {
         "task": task,
         "backend": backend,
+        "metaworld": versions["metaworld"],
+        "metaworld_mujoco": versions["mujoco"],
         "reset_obs_max": float(traj["reset"].max()),
         "hand_max_m": float(traj["hand"].max()),
         "object_max_m": float(traj["object"].max()),
@@ -217,11 +267,18 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seeds", type=int, default=500, help="closed-loop seeds per task")
     parser.add_argument("--traj-seeds", type=int, default=8, help="open-loop seeds per task")
     parser.add_argument("--workers", type=int, default=os.cpu_count() or 1)
+    parser.add_argument(
+        "--engine",
+        choices=ENGINES,
+        default="metaworld",
+        help="the MuJoCo MetaWorld runs on: its pinned one, or ours (this process's)",
+    )
     parser.add_argument("--out", type=Path)
     args = parser.parse_args(argv)
     rows = []
     for task in args.tasks:
-        rows.append(task_row(task, args.backend, args.seeds, args.traj_seeds, args.workers))
+        row = task_row(task, args.backend, args.seeds, args.traj_seeds, args.workers, args.engine)
+        rows.append(row)
         print(markdown(rows[-1:]).splitlines()[-1], file=sys.stderr, flush=True)
     print(markdown(rows))
     if args.out:

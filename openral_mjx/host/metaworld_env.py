@@ -71,6 +71,7 @@ class MetaWorldEnv:
         # the scripted policies warn at every step where their gains saturate an action
         warnings.filterwarnings("ignore", message=r"Constant\(s\) may be too high")
         self._mujoco = mujoco
+        _fit_weld_data(mujoco)
         kwargs: dict[str, Any] = {}
         if image_size > 0:
             kwargs = dict(
@@ -89,6 +90,13 @@ class MetaWorldEnv:
         self.image_size = image_size
         self.policy = ENV_POLICY_MAP[task]() if expert else None
         self.max_steps = int(env.max_path_length)
+
+    def versions(self) -> dict[str, str]:
+        """The MetaWorld and MuJoCo this worker runs (MetaWorld's pinned one, or another put
+        first on its path)."""
+        from importlib.metadata import version
+
+        return {"metaworld": version("metaworld"), "mujoco": self._mujoco.__version__}
 
     def _obs(self, raw: np.ndarray) -> dict[str, np.ndarray]:
         obs = np.asarray(raw, np.float64)
@@ -210,3 +218,28 @@ class MetaWorldExpert:
 
 def make_expert(task: str) -> MetaWorldExpert:
     return MetaWorldExpert(task)
+
+
+# MetaWorld's `reset_mocap_welds` writes these 11 numbers as each weld's whole `eq_data` row
+# (anchor, relative pose, torque scale): MuJoCo before 4.0 has 11 per constraint, 4.0 has 12.
+_WELD_DATA = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, -1.0, 0.0, 0.0, 0.0, 5.0)
+
+
+def _fit_weld_data(mujoco: Any) -> None:
+    """Under a MuJoCo whose weld data is wider than MetaWorld's row (4.0, put first on the
+    worker's path to run MetaWorld's code on the mirror's engine), write MetaWorld's numbers
+    into the row's first 11 entries and leave the rest at the model's values; unchanged
+    otherwise."""
+    from metaworld import sawyer_xyz_env
+
+    if int(getattr(mujoco, "mjNEQDATA", len(_WELD_DATA))) == len(_WELD_DATA):
+        return
+
+    def reset_mocap_welds(self: Any) -> None:
+        model = self.model
+        if model.nmocap > 0 and model.eq_data is not None:
+            for i in range(model.eq_data.shape[0]):
+                if model.eq_type[i] == mujoco.mjtEq.mjEQ_WELD:
+                    model.eq_data[i, : len(_WELD_DATA)] = _WELD_DATA
+
+    sawyer_xyz_env.SawyerMocapBase.reset_mocap_welds = reset_mocap_welds

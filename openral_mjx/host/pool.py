@@ -20,7 +20,7 @@ import tempfile
 import threading
 import time
 import weakref
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -88,10 +88,17 @@ class Worker:
         env: extra environment variables (e.g. MUJOCO_GL).
         log_path: where the worker's stdout/stderr go.
         name: for messages.
+        path_first: directories put before the worker's own packages on its import path (a
+            package of this process to use there instead of the environment's own).
     """
 
     def __init__(
-        self, python: str, env: dict[str, str] | None, log_path: Path, name: str = "worker"
+        self,
+        python: str,
+        env: dict[str, str] | None,
+        log_path: Path,
+        name: str = "worker",
+        path_first: Sequence[str] = (),
     ) -> None:
         self.name = name
         self.log_path = log_path
@@ -101,7 +108,7 @@ class Worker:
             if k not in ("PYTHONPATH", "VIRTUAL_ENV", "PYTHONHOME")
         }
         child_env.update(env or {})
-        child_env["PYTHONPATH"] = _shim_dir()
+        child_env["PYTHONPATH"] = os.pathsep.join([*path_first, _shim_dir()])
         child_env["PYTHONUNBUFFERED"] = "1"
         # `python -m` would put the working directory (the temp dir) first on sys.path, where a
         # stray bisect.py once shadowed the standard library's; Python >= 3.11 leaves it out.

@@ -66,6 +66,12 @@ json.dump(d, open(sys.argv[2], 'w'), indent=1)" /tmp/mw_suite.json "$out/mw_suit
       python3 benchmarks/metaworld_mirror.py raw --tasks "$t" --backend ${BACKEND:-warp} \
         --n ${N:-4096 65536} --max-steps ${MAX_STEPS:-500} --out "$out/metaworld_raw.jsonl" | tail -2 | cut -c1-250
     done ;;
+  mw-poses-cost)  # issue 20: what observing the state the step ends in costs: the evaluator
+                  # against raw physics with the fix and without it (--poses-before-step)
+    for flag in "" --poses-before-step; do
+      python3 benchmarks/metaworld_mirror.py raw --tasks ${TASKS:-door-open-v3} --backend warp \
+        --n ${N:-4096 65536} --out "$out/metaworld_raw_poses.jsonl" $flag | tail -2 | cut -c1-250
+    done ;;
   mw-agree)    # issue 20: the mirror on the GPU against MetaWorld on the CPU, same seeds
     python3 -m openral_mjx.evaluation.metaworld_agreement --tasks ${TASKS:-reach-v3 push-v3 \
       pick-place-v3 door-open-v3 drawer-close-v3} --backend ${BACKEND:-warp} --seeds 500 \
@@ -73,7 +79,8 @@ json.dump(d, open(sys.argv[2], 'w'), indent=1)" /tmp/mw_suite.json "$out/mw_suit
   mw-agree-c)  # issue 20: the agreement table on `c` on this machine's CPU cores, SUITE (mt50)
                # or TASKS: PROCS processes side by side, each on its own cores (taskset) with its
                # MetaWorld workers; one JSON per task in AGREE_DIR, a task already there skipped
-               # (the stage can run in the background over several calls and be started again)
+               # (the stage can run in the background over several calls and be started again);
+               # ENGINE=ours: MetaWorld's code on the mirror's mujoco
     export JAX_PLATFORMS=cpu; d=${AGREE_DIR:-/tmp/agree}; mkdir -p "$d"
     tasks=(${TASKS:-$(SUITE=${SUITE:-mt50} mw_tasks)}); P=${PROCS:-4}; per=$(( $(nproc) / P ))
     for i in $(seq 0 $((P - 1))); do
@@ -81,7 +88,8 @@ json.dump(d, open(sys.argv[2], 'w'), indent=1)" /tmp/mw_suite.json "$out/mw_suit
           t=${tasks[j]}; [ -f "$d/$t.json" ] && continue
           taskset -c $((i * per))-$((i * per + per - 1)) python3 -m \
             openral_mjx.evaluation.metaworld_agreement --tasks "$t" --backend c --seeds ${SEEDS:-500} \
-            --traj-seeds 4 --workers "$per" --out "$d/$t.json" >> "$d/log_$i.txt" 2>&1
+            --traj-seeds 4 --workers "$per" --engine ${ENGINE:-metaworld} --out "$d/$t.json" \
+            >> "$d/log_$i.txt" 2>&1
         done ) &
     done
     wait; ls "$d"/*.json | wc -l ;;

@@ -20,7 +20,9 @@ evaluator's mocap targets and gripper controls from the same reset states. `conc
 process per task on the same GPU; each compiles and warms up, then runs its `--seeds` episodes
 alone, one task after another, and then all at once: episodes/s of the tasks one at a time
 against all together, measured by the same processes on the same compiled programs.
-JSON lines go to `--out` (appended), one per task.
+JSON lines go to `--out` (appended), one per task. `--poses-before-step` (`mirror`, `raw`):
+the mirror reads the poses `mj_step` leaves, one physics step old, as before 2026-11-26: the
+A/B of what observing the state the step ends in costs (one more kinematics pass per step).
 """
 
 from __future__ import annotations
@@ -75,6 +77,21 @@ def save_random_mlp(args: argparse.Namespace) -> None:
     print(f"saved {args.out}")
 
 
+def observe_poses_before_step() -> None:
+    """The mirror built from here on reads the poses `mj_step` leaves (see module doc)."""
+    from openral_mjx.physics import QuantitySpec
+    from openral_mjx.scenes.metaworld_mjx import scene
+
+    def spec(*args, **kwargs) -> QuantitySpec:
+        return QuantitySpec(*args, **{**kwargs, "poses_after_step": False})
+
+    scene.QuantitySpec = spec
+    POSES["after_step"] = False
+
+
+POSES = {"after_step": True}
+
+
 def emit(out: Path | None, row: dict) -> None:
     print(json.dumps(row), flush=True)
     if out is not None:
@@ -98,6 +115,7 @@ def mirror(args: argparse.Namespace) -> None:
                 args.out,
                 {
                     "kind": "mirror",
+                    "poses_after_step": POSES["after_step"],
                     "task": task,
                     "backend": args.backend,
                     "device": str(jax.devices()[0].device_kind),
@@ -247,6 +265,7 @@ def raw(args: argparse.Namespace) -> None:
                 args.out,
                 {
                     "kind": "raw",
+                    "poses_after_step": POSES["after_step"],
                     "task": task,
                     "backend": args.backend,
                     "device": str(jax.devices()[0].device_kind),
@@ -374,7 +393,10 @@ def main() -> int:
     parser.add_argument("--no-cache", action="store_true", help="JAX's compilation cache off")
     parser.add_argument("--sync", type=Path, help=argparse.SUPPRESS)  # `child` only
     parser.add_argument("--index", type=int, help=argparse.SUPPRESS)
+    parser.add_argument("--poses-before-step", action="store_true", help="see module doc")
     args = parser.parse_args()
+    if args.poses_before_step:
+        observe_poses_before_step()
     if not args.no_cache:
         enable_compilation_cache()  # as the CLIs do: a repeated run loads its executables
     print(" ".join(["python", *sys.argv]), flush=True)

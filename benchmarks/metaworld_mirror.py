@@ -6,6 +6,8 @@ physics ceiling (issue 20's speed figures).
     python benchmarks/metaworld_mirror.py raw --tasks reach-v3 push-v3 --backend warp --n 4096 65536
     python benchmarks/metaworld_mirror.py concurrent --tasks reach-v3 push-v3 --backend warp
     python benchmarks/metaworld_mirror.py save-mlp --out /tmp/mw_mlp
+    JAX_PLATFORMS=cpu python benchmarks/metaworld_mirror.py mjx-check --tasks mt50 --seeds 2 \
+        --max-steps 5
 
 `mirror`: per task, `--seeds` episodes (seeds 0..) at once with a JAX MLP (3 x 256 SiLU, random
 weights, fused in the episode's scan) on the mirror; episodes/s from the run time (compile
@@ -20,7 +22,9 @@ evaluator's mocap targets and gripper controls from the same reset states. `conc
 process per task on the same GPU; each compiles and warms up, then runs its `--seeds` episodes
 alone, one task after another, and then all at once: episodes/s of the tasks one at a time
 against all together, measured by the same processes on the same compiled programs.
-JSON lines go to `--out` (appended), one per task. `--poses-before-step` (`mirror`, `raw`):
+`mjx-check`: per task, the mirror on `mjx` against `c` from the same reset vectors under the
+same random actions (observation differences, MJX compile time): that every task builds,
+compiles and steps on `mjx`. JSON lines go to `--out` (appended), one per task. `--poses-before-step` (`mirror`, `raw`):
 the mirror reads the poses `mj_step` leaves, one physics step old, as before 2026-11-26: the
 A/B of what observing the state the step ends in costs (one more kinematics pass per step).
 """
@@ -42,6 +46,7 @@ from openral_mjx.evaluation.suite import mps_running
 from openral_mjx.policies.mlp import MlpConfig, init_params, mlp_policy, save_mlp
 from openral_mjx.runner import run_seeds
 from openral_mjx.runner.compile_cache import enable_compilation_cache
+from openral_mjx.runner.episode import seed_keys
 from openral_mjx.scenes import scene_suite
 from openral_mjx.scenes.metaworld_mjx import task as mw
 
@@ -281,6 +286,52 @@ def raw(args: argparse.Namespace) -> None:
             scene.close()
 
 
+def mjx_check(args: argparse.Namespace) -> None:
+    """Per task: the mirror built on `mjx` and on `c`, reset from the same random vectors of
+    seeds 0..`--seeds`-1 and stepped `--max-steps` control steps with the same uniform random
+    actions; the largest observation difference at reset and over the steps, and the compile
+    times (MJX's collision of MetaWorld's meshes is the slow part)."""
+    for task in tasks_of(args.tasks):
+        seeds = np.arange(args.seeds)
+        scenes = {b: build_scene("metaworld_mjx", {"task": task}, backend=b) for b in ("c", "mjx")}
+        vecs = np.asarray(
+            jax.jit(jax.vmap(scenes["c"].reset_with_seed))(seeds, seed_keys(seeds)[0]).info["vec"]
+        )
+        key = jax.random.PRNGKey(7)
+        actions = jax.random.uniform(key, (args.max_steps, len(seeds), 4), minval=-1, maxval=1)
+        obs, times = {}, {}
+        for name, scene in scenes.items():
+            t = time.perf_counter()
+            reset = jax.jit(jax.vmap(scene.reset_from)).lower(vecs).compile()
+            step = jax.jit(jax.vmap(scene.step)).lower(reset(vecs), actions[0]).compile()
+            times[name] = time.perf_counter() - t
+            state = reset(vecs)
+            seq = [np.asarray(state.obs)]
+            for a in actions:
+                state = step(state, a)
+                seq.append(np.asarray(state.obs))
+            obs[name] = np.stack(seq, axis=1)  # (seeds, steps + 1, 39)
+        diff = np.abs(obs["mjx"] - obs["c"])
+        emit(
+            args.out,
+            {
+                "kind": "mjx-check",
+                "task": task,
+                "seeds": len(seeds),
+                "steps": args.max_steps,
+                "reset_obs_max": float(diff[:, 0].max()),
+                "steps_obs_max": float(diff[:, 1:].max()),
+                "hand_max_m": float(np.linalg.norm(diff[:, :, :3], axis=-1).max()),
+                "finite": bool(np.isfinite(obs["mjx"]).all()),
+                "mjx_compile_s": times["mjx"],
+                "c_compile_s": times["c"],
+                "mjx_changes": scenes["mjx"].mjx_changes,
+            },
+        )
+        for scene in scenes.values():
+            scene.close()
+
+
 def _wait_for(path: Path, timeout_s: float = 1800.0) -> None:
     end = time.monotonic() + timeout_s
     while not path.exists():
@@ -381,7 +432,16 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument(
         "what",
-        choices=("mirror", "host", "host-direct", "raw", "concurrent", "child", "save-mlp"),
+        choices=(
+            "mirror",
+            "host",
+            "host-direct",
+            "raw",
+            "concurrent",
+            "child",
+            "save-mlp",
+            "mjx-check",
+        ),
     )
     parser.add_argument("--tasks", nargs="+", default=["mt10"])
     parser.add_argument("--backend", default="warp")
@@ -402,6 +462,7 @@ def main() -> int:
     print(" ".join(["python", *sys.argv]), flush=True)
     modes = {"mirror": mirror, "host": host, "host-direct": host_direct, "raw": raw}
     modes |= {"concurrent": concurrent, "child": child, "save-mlp": save_random_mlp}
+    modes |= {"mjx-check": mjx_check}
     modes[args.what](args)
     return 0
 

@@ -7,9 +7,11 @@ the ``box`` body to the drawn box position; goal: box + (0.03, 0, 0.13). Observe
 quaternion; success: the ``pegHead`` site within 0.07 of the goal, with y and z weighted 2.
 
 peg-unplug-side draws the box position: the ``box`` body goes there, the plug's free joint to
-box + (0.044, 0, 0.131) with identity orientation and zero linear velocity (MetaWorld leaves
-the angular velocity as it was); goal: plug + (0.15, 0, 0). Observed object: the ``pegEnd``
-site and the ``plug1`` body's quaternion as MuJoCo's (w-x-y-z); success: within 0.07 of goal.
+box + (0.044, 0, 0.131) with identity orientation and zero linear velocity; MetaWorld leaves
+the angular velocity as its last hand reset left it, which knocks the plug about inside the
+moved box, so the mirror simulates that hand reset per episode; goal: plug + (0.15, 0, 0).
+Observed object: the ``pegEnd`` site and the ``plug1`` body's quaternion as MuJoCo's
+(w-x-y-z); success: within 0.07 of goal.
 """
 
 from __future__ import annotations
@@ -77,6 +79,10 @@ class PegUnplugSide(MirrorTask):
     bodies = ("plug1",)
     sites = ("pegEnd",)
     moved_bodies = ("box",)
+    # MetaWorld's final hand reset runs with the box already moved and the plug at its model
+    # default, inside the moved box: the plug is knocked about, and `_set_obj_xyz` keeps the
+    # angular velocity it leaves (qvel[12:15]), so that velocity depends on the episode
+    hand_reset_per_episode = True
 
     def place(
         self, facts: ModelFacts, vec: jax.Array, qpos: jax.Array, qvel: jax.Array

@@ -24,9 +24,10 @@ alone, one task after another, and then all at once: episodes/s of the tasks one
 against all together, measured by the same processes on the same compiled programs.
 `mjx-check`: per task, the mirror on `mjx` against `c` from the same reset vectors under the
 same random actions (observation differences, MJX compile time): that every task builds,
-compiles and steps on `mjx`. JSON lines go to `--out` (appended), one per task. `--poses-before-step` (`mirror`, `raw`):
-the mirror reads the poses `mj_step` leaves, one physics step old, as before 2026-11-26: the
-A/B of what observing the state the step ends in costs (one more kinematics pass per step).
+compiles and steps on `mjx`. JSON lines go to `--out` (appended), one per task.
+`--poses-before-step` (`mirror`, `raw`): the mirror reads the poses `mj_step` leaves, one
+physics step old, as before 2026-11-26: the A/B of what observing the state the step ends in
+costs (one more kinematics pass per step).
 """
 
 from __future__ import annotations

@@ -221,8 +221,9 @@ def make_expert(task: str) -> MetaWorldExpert:
 
 
 # MetaWorld's `reset_mocap_welds` writes these 11 numbers as each weld's whole `eq_data` row
-# (anchor, relative pose, torque scale): MuJoCo before 4.0 has 11 per constraint, 4.0 has 12.
-_WELD_DATA = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, -1.0, 0.0, 0.0, 0.0, 5.0)
+# before any simulation (anchor, relative pose with quaternion (-1, 0, 0, 0), torque scale 5):
+# MuJoCo before 4.0 has 11 per constraint, 4.0 has 12. The mirror's model gets them too.
+WELD_DATA = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, -1.0, 0.0, 0.0, 0.0, 5.0)
 
 
 def _fit_weld_data(mujoco: Any) -> None:
@@ -232,7 +233,7 @@ def _fit_weld_data(mujoco: Any) -> None:
     otherwise."""
     from metaworld import sawyer_xyz_env
 
-    if int(getattr(mujoco, "mjNEQDATA", len(_WELD_DATA))) == len(_WELD_DATA):
+    if int(getattr(mujoco, "mjNEQDATA", len(WELD_DATA))) == len(WELD_DATA):
         return
 
     def reset_mocap_welds(self: Any) -> None:
@@ -240,6 +241,6 @@ def _fit_weld_data(mujoco: Any) -> None:
         if model.nmocap > 0 and model.eq_data is not None:
             for i in range(model.eq_data.shape[0]):
                 if model.eq_type[i] == mujoco.mjtEq.mjEQ_WELD:
-                    model.eq_data[i, : len(_WELD_DATA)] = _WELD_DATA
+                    model.eq_data[i, : len(WELD_DATA)] = WELD_DATA
 
     sawyer_xyz_env.SawyerMocapBase.reset_mocap_welds = reset_mocap_welds

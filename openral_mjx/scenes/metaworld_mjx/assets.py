@@ -18,11 +18,9 @@ import numpy as np
 
 from openral_mjx.core.errors import ConfigError
 from openral_mjx.host.envs import ensure_env
+from openral_mjx.host.metaworld_env import WELD_DATA
 
 ENV = "metaworld"
-# MetaWorld's `reset_mocap_welds`: the weld holding the hand to its mocap body gets this data
-# (anchor, relative pose with quaternion (-1, 0, 0, 0), torque scale 5) before any simulation.
-WELD_DATA = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, -1.0, 0.0, 0.0, 0.0, 5.0)
 
 
 @functools.cache

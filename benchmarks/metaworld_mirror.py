@@ -25,6 +25,7 @@ against all together, measured by the same processes on the same compiled progra
 `mjx-check`: per task, the mirror on `mjx` against `c` from the same reset vectors under the
 same random actions (observation differences, MJX compile time): that every task builds,
 compiles and steps on `mjx`. JSON lines go to `--out` (appended), one per task.
+`--warp-graph MODE` (`raw`): MuJoCo-Warp's CUDA graph capture mode (the graph-mode table).
 `--poses-before-step` (`mirror`, `raw`): the mirror reads the poses `mj_step` leaves, one
 physics step old, as before 2026-11-26: the A/B of what observing the state the step ends in
 costs (one more kinematics pass per step).
@@ -96,6 +97,31 @@ def observe_poses_before_step() -> None:
 
 
 POSES = {"after_step": True}
+GRAPH = {"mode": "WARP"}
+
+
+def use_warp_graph_mode(mode: str) -> None:
+    """The `warp` backend built from here on puts its model with MuJoCo-Warp graph capture
+    `mode` (`mjx.put_model(graph_mode=...)`; MJX's default on a GPU is WARP): the A/B behind
+    BENCHMARKS.md's graph-mode table."""
+    import mujoco.mjx.warp as mjxw
+
+    from openral_mjx.physics import warp_backend
+    from openral_mjx.physics.mjx_backend import mjx
+
+    graph = getattr(mjxw.types.GraphMode, mode)
+    put = mjx.put_model
+
+    class Patched:
+        @staticmethod
+        def put_model(*args, **kwargs):
+            return put(*args, **kwargs, graph_mode=graph)
+
+        def __getattr__(self, name):
+            return getattr(mjx, name)
+
+    warp_backend.mjx = Patched()
+    GRAPH["mode"] = mode
 
 
 def emit(out: Path | None, row: dict) -> None:
@@ -272,6 +298,7 @@ def raw(args: argparse.Namespace) -> None:
                 {
                     "kind": "raw",
                     "poses_after_step": POSES["after_step"],
+                    "warp_graph": GRAPH["mode"],
                     "task": task,
                     "backend": args.backend,
                     "device": str(jax.devices()[0].device_kind),
@@ -455,9 +482,16 @@ def main() -> int:
     parser.add_argument("--sync", type=Path, help=argparse.SUPPRESS)  # `child` only
     parser.add_argument("--index", type=int, help=argparse.SUPPRESS)
     parser.add_argument("--poses-before-step", action="store_true", help="see module doc")
+    parser.add_argument(
+        "--warp-graph",
+        choices=("WARP", "JAX", "NONE", "WARP_STAGED", "WARP_STAGED_EX"),
+        help="MuJoCo-Warp's CUDA graph capture mode (`raw`; default: MJX's, WARP on a GPU)",
+    )
     args = parser.parse_args()
     if args.poses_before_step:
         observe_poses_before_step()
+    if args.warp_graph:
+        use_warp_graph_mode(args.warp_graph)
     if not args.no_cache:
         enable_compilation_cache()  # as the CLIs do: a repeated run loads its executables
     print(" ".join(["python", *sys.argv]), flush=True)

@@ -168,12 +168,40 @@ def test_peg_unplug_reset_spin_comes_from_the_episodes_hand_reset():
     assert np.sum(np.abs(spin - mirror).max(axis=1) < SAME_ENGINE_TOL) >= 4, (spin, mirror)
 
 
+def test_mjx_model_observes_metaworlds_frames():
+    """A geom made a prism for mjx is observed in its cylinder's frame. reach-wall's puck is
+    flatter than it is wide, so MuJoCo makes the prism's axis its x: with the same tilted puck,
+    MuJoCo C's orientation of the prism, turned by the scene's offset, is the cylinder's."""
+    import mujoco
+
+    from openral_mjx.scenes.composition import quat_mul
+    from openral_mjx.scenes.metaworld_mjx.assets import load_spec
+
+    scene = make_scene("metaworld_mjx", {"task": "reach-wall-v3"}, backend="mjx")
+    assert scene.mjx_changes == {"cylinders_as_prisms": 1, "margins_zeroed": 4}
+    m = scene.mj_model
+    original = load_spec(TASKS["reach-wall-v3"].xml).compile()
+    quats = []
+    for model in (original, m):
+        d = mujoco.MjData(model)
+        adr = model.jnt_qposadr[model.joint("objjoint").id]
+        d.qpos[adr + 3 : adr + 7] = (0.9, 0.3, -0.2, 0.25)  # normalised by kinematics
+        mujoco.mj_kinematics(model, d)
+        quat = np.zeros(4)
+        mujoco.mju_mat2Quat(quat, d.geom_xmat[model.geom("objGeom").id])
+        quats.append(quat)
+    assert np.abs(np.abs(quats[0] @ quats[1]) - 1) > 0.1  # the prism's own frame is turned
+    turned = np.asarray(quat_mul(jax.numpy.asarray(quats[1]), scene._geom_frames[0]))
+    np.testing.assert_allclose(np.abs(turned @ quats[0]), 1.0, atol=1e-6)
+
+
 @pytest.mark.slow  # MJX compiles MetaWorld's mesh collisions for minutes on a CPU
 def test_mjx_starts_where_c_does():
     """The same random vectors give the same reset observation on mjx (float32 kinematics;
-    MJX collides the puck through a 16-gon prism: resting contacts, hence the tolerance)."""
-    c = make_scene("metaworld_mjx", {"task": "reach-v3"}, backend="c")
-    m = make_scene("metaworld_mjx", {"task": "reach-v3"}, backend="mjx")
+    MJX collides the puck through a 16-gon prism: resting contacts, hence the tolerance), the
+    flat puck's orientation included."""
+    c = make_scene("metaworld_mjx", {"task": "reach-wall-v3"}, backend="c")
+    m = make_scene("metaworld_mjx", {"task": "reach-wall-v3"}, backend="mjx")
     vecs = np.asarray(agreement.mirror_resets(c, np.arange(3)).info["vec"])
     obs_c = jax.jit(jax.vmap(c.reset_from))(vecs).obs
     obs_m = jax.jit(jax.vmap(m.reset_from))(vecs).obs

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Sequence
 
 import jax
 import jax.numpy as jnp
@@ -223,3 +224,37 @@ def cylinders_as_prisms(spec: mujoco.MjSpec, sides: int = 16) -> int:
         geom.meshname = mesh.name
         changed += 1
     return changed
+
+
+def quat_mul(a: jax.Array, b: jax.Array) -> jax.Array:
+    """Hamilton products a * b of w-x-y-z quaternions (..., 4)."""
+    aw, ax, ay, az = (a[..., i] for i in range(4))
+    bw, bx, by, bz = (b[..., i] for i in range(4))
+    return jnp.stack(
+        [
+            aw * bw - ax * bx - ay * by - az * bz,
+            aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw,
+        ],
+        axis=-1,
+    )
+
+
+def geom_frame_offsets(
+    before: mujoco.MjModel, after: mujoco.MjModel, geoms: Sequence[int]
+) -> np.ndarray:
+    """Per geom of `geoms`, the rotation q with ``after.geom_quat * q = before.geom_quat``
+    (w-x-y-z, (len(geoms), 4)): a readout of the geom's orientation in model `after`, turned by
+    q, is the one model `before` gives.
+
+    A mesh geom's frame is its mesh's principal axes, which MuJoCo orders by moment: a prism
+    from `cylinders_as_prisms` flatter than it is wide gets its axis as x, where the cylinder
+    had z. Geom indices must be the same in both models (the prisms replace geoms in place).
+    """
+    out = np.zeros((len(geoms), 4))
+    for i, g in enumerate(geoms):
+        inverse = np.zeros(4)
+        mujoco.mju_negQuat(inverse, after.geom_quat[g])
+        mujoco.mju_mulQuat(out[i], inverse, before.geom_quat[g])
+    return out

@@ -40,6 +40,7 @@ import numpy as np
 from openral_mjx.core.errors import ConfigError, unknown
 from openral_mjx.raycast.mount import JITTER_POS_M, JITTER_ROT_RAD
 from openral_mjx.scenes.base import RandomizationTargets, Scene, State
+from openral_mjx.scenes.composition import quat_mul
 
 INFO_KEY = "randomization"
 MAX_DELAY = 32
@@ -242,21 +243,6 @@ def available_factors(scene: Scene) -> list[str]:
     return [n for n, k in FACTORS.items() if getattr(targets, k.target)]
 
 
-def _quat_mul(a: jax.Array, b: jax.Array) -> jax.Array:
-    """Hamilton products a * b of w-x-y-z quaternions (..., 4)."""
-    aw, ax, ay, az = (a[..., i] for i in range(4))
-    bw, bx, by, bz = (b[..., i] for i in range(4))
-    return jnp.stack(
-        [
-            aw * bw - ax * bx - ay * by - az * bz,
-            aw * bx + ax * bw + ay * bz - az * by,
-            aw * by - ax * bz + ay * bw + az * bx,
-            aw * bz + ax * by - ay * bx + az * bw,
-        ],
-        axis=-1,
-    )
-
-
 def _salt(name: str) -> int:
     return zlib.crc32(name.encode()) & 0x7FFFFFFF
 
@@ -396,7 +382,7 @@ class Randomized(Scene):
             turn = jnp.concatenate(
                 [jnp.full((cams.size, 1), jnp.cos(half)), jnp.sin(half) * axes], axis=1
             )
-            fields["cam_quat"] = quat.at[cams].set(_quat_mul(quat[cams], turn))
+            fields["cam_quat"] = quat.at[cams].set(quat_mul(quat[cams], turn))
         if f := self._factor("light"):
             lights = np.asarray(self.targets.lights, np.int64)
             diffuse = field("light_diffuse")

@@ -52,7 +52,7 @@ from openral_mjx.scenes.base import (
     colliding_geoms,
     obs_slices,
 )
-from openral_mjx.scenes.composition import cylinders_as_prisms
+from openral_mjx.scenes.composition import cylinders_as_prisms, geom_frame_offsets, quat_mul
 from openral_mjx.scenes.metaworld import instruction as host_instruction
 from openral_mjx.scenes.metaworld_mjx import task as mw
 from openral_mjx.scenes.metaworld_mjx.assets import load_spec
@@ -138,7 +138,9 @@ class MetaWorldMjx(Scene):
         self.logic = t = TASKS[o.task]
         self.spec = load_spec(t.xml)
         self.mjx_changes: dict[str, int] = {}
+        original = None
         if resolve_backend_name(backend) == "mjx":
+            original = self.spec.compile()
             self.mjx_changes = for_mjx(self.spec)
         bodies = tuple(dict.fromkeys((*mw.COMMON_BODIES, *t.bodies, *t.moved_bodies)))
         sites = tuple(dict.fromkeys((*mw.COMMON_SITES, *t.sites)))
@@ -159,6 +161,13 @@ class MetaWorldMjx(Scene):
         self.sensor_shapes = sensor_shapes(sensors)
         m = self.mj_model  # the backend's compiled copy of the spec
         self.facts, rest = model_facts(m, t)
+        # MetaWorld's orientation of a geom that `for_mjx` made a prism (see
+        # `geom_frame_offsets`), or None where every observed geom keeps its frame
+        self._geom_frames = None
+        if original is not None:
+            offsets = geom_frame_offsets(original, m, [m.geom(n).id for n in geoms])
+            if not np.allclose(np.abs(offsets[:, 0]), 1.0):
+                self._geom_frames = jnp.asarray(offsets, jnp.float32)
         self._names = (
             {n: i for i, n in enumerate(bodies)},
             {n: i for i, n in enumerate(sites)},
@@ -344,7 +353,10 @@ class MetaWorldMjx(Scene):
     # ---- observation ----------------------------------------------------------------------
 
     def _view(self, physics: PhysicsState) -> mw.View:
-        return mw.View(physics.quantities, *self._names)
+        q = physics.quantities
+        if self._geom_frames is not None:
+            q = q.replace(geom_quat=quat_mul(q.geom_quat, self._geom_frames))
+        return mw.View(q, *self._names)
 
     def _current(self, view: mw.View) -> jax.Array:
         """MetaWorld's ``_get_curr_obs_combined_no_goal`` (18 floats)."""

@@ -73,14 +73,17 @@ json.dump(d, open(sys.argv[2], 'w'), indent=1)" /tmp/mw_suite.json "$out/mw_suit
         --n ${N:-4096 65536} --out "$out/metaworld_raw_poses.jsonl" $flag | tail -2 | cut -c1-250
     done ;;
   mw-mjx-check)  # issue 20: every task of SUITE (mt50) or TASKS builds, compiles and steps on
-                 # mjx (JAX on this machine's CPU), against c: PROCS processes side by side, one
-                 # JSON line per task in MJX_DIR/mjx_check_I.jsonl as each finishes
+                 # mjx (JAX on this machine's CPU), against c: PROCS lanes side by side, one JSON
+                 # line per task in MJX_DIR/mjx_check_I.jsonl as each finishes; a task past
+                 # TASK_S seconds (1800) is given up (box-close's reset takes hours on mjx)
     export JAX_PLATFORMS=cpu; d=${MJX_DIR:-/tmp/mjxcheck}; mkdir -p "$d"
     tasks=(${TASKS:-$(SUITE=${SUITE:-mt50} mw_tasks)}); P=${PROCS:-16}
     for i in $(seq 0 $((P - 1))); do
-      part=(); for ((j = i; j < ${#tasks[@]}; j += P)); do part+=("${tasks[j]}"); done
-      [ ${#part[@]} -gt 0 ] && python3 benchmarks/metaworld_mirror.py mjx-check --tasks "${part[@]}" \
-        --seeds 2 --max-steps 5 --out "$d/mjx_check_$i.jsonl" > "$d/log_$i.txt" 2>&1 &
+      ( for ((j = i; j < ${#tasks[@]}; j += P)); do
+          timeout "${TASK_S:-1800}" python3 benchmarks/metaworld_mirror.py mjx-check \
+            --tasks "${tasks[j]}" --seeds 2 --max-steps 5 --out "$d/mjx_check_$i.jsonl" \
+            >> "$d/log_$i.txt" 2>&1 || echo "${tasks[j]}: gave up or failed ($?)" >> "$d/log_$i.txt"
+        done ) &
     done
     wait; cat "$d"/mjx_check_*.jsonl | wc -l ;;
   mw-agree)    # issue 20: the mirror on the GPU against MetaWorld on the CPU, same seeds

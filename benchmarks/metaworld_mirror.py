@@ -24,7 +24,9 @@ alone, one task after another, and then all at once: episodes/s of the tasks one
 against all together, measured by the same processes on the same compiled programs.
 `mjx-check`: per task, the mirror on `mjx` against `c` from the same reset vectors under the
 same random actions (observation differences, MJX compile time): that every task builds,
-compiles and steps on `mjx`. JSON lines go to `--out` (appended), one per task.
+compiles and steps on `mjx`. `mjx-forward`: one env's `mjx.forward` on the mjx model, its
+contact slots and constraint rows (`--max-contact-points K`: MJX's cap on contacts). JSON
+lines go to `--out` (appended), one per task.
 `--warp-graph MODE` (`raw`): MuJoCo-Warp's CUDA graph capture mode (the graph-mode table).
 `--poses-before-step` (`mirror`, `raw`): the mirror reads the poses `mj_step` leaves, one
 physics step old, as before 2026-11-26: the A/B of what observing the state the step ends in
@@ -360,6 +362,42 @@ def mjx_check(args: argparse.Namespace) -> None:
             scene.close()
 
 
+def mjx_forward(args: argparse.Namespace) -> None:
+    """Per task, one `mjx.forward` of the mirror's mjx model (one env at its default state,
+    jitted; the second call timed), with MJX's static contact slots and constraint rows; with
+    `--max-contact-points K`, MJX's numeric that keeps the K deepest contacts per condim."""
+    from mujoco import mjx
+
+    for task in tasks_of(args.tasks):
+        scene = build_scene("metaworld_mjx", {"task": task}, backend="mjx", n_envs=1)
+        spec = scene.spec.copy()
+        if args.max_contact_points:
+            spec.add_numeric(name="max_contact_points", data=[args.max_contact_points])
+        m = spec.compile()
+        mx, d = mjx.put_model(m, impl="jax"), mjx.make_data(m, impl="jax")
+        d = jax.jit(mjx.kinematics)(mx, d)
+        t = time.perf_counter()
+        forward = jax.jit(mjx.forward).lower(mx, d).compile()
+        compile_s = time.perf_counter() - t
+        jax.block_until_ready(forward(mx, d))
+        t = time.perf_counter()
+        jax.block_until_ready(forward(mx, d))
+        emit(
+            args.out,
+            {
+                "kind": "mjx-forward",
+                "task": task,
+                "device": str(jax.devices()[0].device_kind),
+                "max_contact_points": args.max_contact_points,
+                "contact_slots": int(d._impl.contact.dist.shape[0]),
+                "constraint_rows": int(d._impl.efc_J.shape[0]),
+                "compile_s": compile_s,
+                "forward_ms": (time.perf_counter() - t) * 1000,
+            },
+        )
+        scene.close()
+
+
 def _wait_for(path: Path, timeout_s: float = 1800.0) -> None:
     end = time.monotonic() + timeout_s
     while not path.exists():
@@ -469,6 +507,7 @@ def main() -> int:
             "child",
             "save-mlp",
             "mjx-check",
+            "mjx-forward",
         ),
     )
     parser.add_argument("--tasks", nargs="+", default=["mt10"])
@@ -482,6 +521,7 @@ def main() -> int:
     parser.add_argument("--sync", type=Path, help=argparse.SUPPRESS)  # `child` only
     parser.add_argument("--index", type=int, help=argparse.SUPPRESS)
     parser.add_argument("--poses-before-step", action="store_true", help="see module doc")
+    parser.add_argument("--max-contact-points", type=int, help="`mjx-forward`: MJX's cap")
     parser.add_argument(
         "--warp-graph",
         choices=("WARP", "JAX", "NONE", "WARP_STAGED", "WARP_STAGED_EX"),
@@ -497,7 +537,7 @@ def main() -> int:
     print(" ".join(["python", *sys.argv]), flush=True)
     modes = {"mirror": mirror, "host": host, "host-direct": host_direct, "raw": raw}
     modes |= {"concurrent": concurrent, "child": child, "save-mlp": save_random_mlp}
-    modes |= {"mjx-check": mjx_check}
+    modes |= {"mjx-check": mjx_check, "mjx-forward": mjx_forward}
     modes[args.what](args)
     return 0
 

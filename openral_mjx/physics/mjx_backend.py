@@ -1,4 +1,13 @@
-"""MJX (JAX implementation): physics as pure JAX, on any JAX device."""
+"""MJX (JAX implementation): physics as pure JAX, on any JAX device.
+
+MJX's JAX collision has no broadphase: every candidate contact of the model is a slot, and a
+constraint row, every step, active or not. A scene may cap the slots with MJX's
+``max_contact_points`` numeric (MJX keeps the deepest per condim); dropping a contact that
+would have been active changes the physics silently, so an env where a capped group's every
+kept contact is active (one more may have been dropped) reports ``ok = False``, and the runner
+counts it diverged. MJX's other cap, ``max_geom_pairs``, culls by bounding spheres before
+collision and cannot be checked this way, so it is refused.
+"""
 
 from __future__ import annotations
 
@@ -8,12 +17,14 @@ import io
 import jax
 import jax.numpy as jnp
 import mujoco
+import numpy as np
 
 # mujoco.mjx prints "Failed to import warp" to stdout when warp-lang is absent (an optional
 # extra); keep that out of our CLI's output.
 with contextlib.redirect_stdout(io.StringIO()):
     from mujoco import mjx
 
+from openral_mjx.core.errors import ConfigError
 from openral_mjx.physics.base import (
     PhysicsBackend,
     PhysicsState,
@@ -22,6 +33,38 @@ from openral_mjx.physics.base import (
     check_fields,
     mat_to_quat,
 )
+
+_CAP = "max_contact_points"
+
+
+def numeric(m: mujoco.MjModel, name: str) -> int | None:
+    """The model's integer custom numeric `name` (MJX's contact caps), or None."""
+    i = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_NUMERIC, name)
+    return None if i < 0 else int(m.numeric_data[m.numeric_adr[i]])
+
+
+def capped_contact_groups(m: mujoco.MjModel) -> list[tuple[int, int]]:
+    """(first slot, slots) of each condim group of MJX's contact slots that the model's
+    ``max_contact_points`` truncates, in the order MJX lays them out (by condim)."""
+    from mujoco.mjx._src import collision_driver
+
+    cap = numeric(m, _CAP)
+    if cap is None or cap < 0:
+        return []
+    i = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_NUMERIC, _CAP)
+    adr = m.numeric_adr[i]
+    m.numeric_data[adr] = -1  # the uncapped layout, read through MJX's own function
+    try:
+        full = collision_driver.make_condim(m)
+    finally:
+        m.numeric_data[adr] = cap
+    groups, start = [], 0
+    for dim in np.unique(full):
+        n = int((full == dim).sum())
+        if n > cap:
+            groups.append((start, cap))
+        start += min(n, cap)
+    return groups
 
 
 class MjxBackend(PhysicsBackend):
@@ -36,6 +79,21 @@ class MjxBackend(PhysicsBackend):
     exportable = True
 
     def _setup(self, spec: mujoco.MjSpec) -> None:
+        m = self.mj_model
+        pairs_cap = numeric(m, "max_geom_pairs")
+        if self.impl == "jax" and pairs_cap is not None and pairs_cap >= 0:
+            raise ConfigError(
+                "the scene sets MJX's max_geom_pairs, which drops contacts unchecked; the "
+                f"mjx backend accepts {_CAP} instead (an env that may lose an active contact "
+                "to it is counted diverged)"
+            )
+        # Capped contact groups, and the largest distance at which a contact can be active
+        # (MJX: dist < margin - gap); a capped group is safe while its last kept contact
+        # (the least deep) lies beyond that.
+        self._capped = capped_contact_groups(m) if self.impl == "jax" else []
+        colliding = (m.geom_contype | m.geom_conaffinity) > 0
+        margins = np.concatenate([m.geom_margin[colliding], m.pair_margin, [0.0]])
+        self._active_below = float(margins.max())
         self.mx = self._put_model()
         self._body_ids = jnp.asarray(self.body_ids, dtype=jnp.int32)
         self._site_ids = jnp.asarray(self.site_ids, dtype=jnp.int32)
@@ -51,6 +109,15 @@ class MjxBackend(PhysicsBackend):
     def _data_ok(self, d: mjx.Data) -> jax.Array:
         """False where this env's physics can no longer be trusted."""
         return all_finite(d.qpos, d.qvel)
+
+    def _contacts_kept(self, d: mjx.Data) -> jax.Array:
+        """False where a capped contact group kept only active contacts in `d`'s last
+        collision (an active one may have been dropped)."""
+        ok = jnp.ones((), bool)
+        for start, n in self._capped:
+            kept = d._impl.contact.dist[start : start + n]
+            ok &= jnp.max(kept) >= self._active_below
+        return ok
 
     def _readout(
         self, d: mjx.Data, fields: dict[str, jax.Array] | None = None
@@ -113,10 +180,14 @@ class MjxBackend(PhysicsBackend):
         if mocap is not None:
             d = d.replace(mocap_pos=mocap[0], mocap_quat=mocap[1])
         mx = self.model(state.fields)
-        d = jax.lax.fori_loop(0, self.n_substeps, lambda _, x: mjx.step(mx, x), d)
+
+        def substep(_: int, carry: tuple[mjx.Data, jax.Array]) -> tuple[mjx.Data, jax.Array]:
+            d, kept = carry
+            d = mjx.step(mx, d)
+            return d, kept & self._contacts_kept(d)
+
+        d, kept = jax.lax.fori_loop(0, self.n_substeps, substep, (d, ok))
         if self.quantity_spec.poses_after_step:  # the next step's forward pass redoes them
             d = self._kinematics(mx, d, state.fields)
         d, q = self._readout(d, state.fields)
-        return PhysicsState(
-            data=d, quantities=q.replace(ok=q.ok & state.quantities.ok), fields=state.fields
-        )
+        return PhysicsState(data=d, quantities=q.replace(ok=q.ok & kept), fields=state.fields)

@@ -75,9 +75,13 @@ json.dump(d, open(sys.argv[2], 'w'), indent=1)" /tmp/mw_suite.json "$out/mw_suit
   mw-mjx-check)  # issue 20: every task of SUITE (mt50) or TASKS builds, compiles and steps on
                  # mjx (JAX on this machine's CPU), against c: PROCS lanes side by side, one JSON
                  # line per task in MJX_DIR/mjx_check_I.jsonl as each finishes; a task past
-                 # TASK_S seconds (1800) is given up (box-close's reset takes hours on mjx)
+                 # TASK_S seconds (1800) is given up. The tasks that simulate the hand reset per
+                 # episode (slowest) go first, one per lane.
     export JAX_PLATFORMS=cpu; d=${MJX_DIR:-/tmp/mjxcheck}; mkdir -p "$d"
-    tasks=(${TASKS:-$(SUITE=${SUITE:-mt50} mw_tasks)}); P=${PROCS:-16}
+    tasks=(${TASKS:-$(python3 -c "from openral_mjx.scenes import scene_suite as s
+from openral_mjx.scenes.metaworld_mjx.tasks import TASKS as T
+ts = s('metaworld_mjx', '${SUITE:-mt50}'); print(*sorted(ts, key=lambda t: not T[t].hand_reset_per_episode))")})
+    P=${PROCS:-16}
     for i in $(seq 0 $((P - 1))); do
       ( for ((j = i; j < ${#tasks[@]}; j += P)); do
           timeout "${TASK_S:-1800}" python3 benchmarks/metaworld_mirror.py mjx-check \

@@ -329,7 +329,7 @@ def mjx_check(args: argparse.Namespace) -> None:
         )
         key = jax.random.PRNGKey(7)
         actions = jax.random.uniform(key, (args.max_steps, len(seeds), 4), minval=-1, maxval=1)
-        obs, times = {}, {}
+        obs, times, oks = {}, {}, {}
         for name, scene in scenes.items():
             t = time.perf_counter()
             reset = jax.jit(jax.vmap(scene.reset_from)).lower(vecs).compile()
@@ -341,6 +341,7 @@ def mjx_check(args: argparse.Namespace) -> None:
                 state = step(state, a)
                 seq.append(np.asarray(state.obs))
             obs[name] = np.stack(seq, axis=1)  # (seeds, steps + 1, 39)
+            oks[name] = float(np.mean(np.asarray(state.physics.quantities.ok)))
         diff = np.abs(obs["mjx"] - obs["c"])
         emit(
             args.out,
@@ -351,8 +352,12 @@ def mjx_check(args: argparse.Namespace) -> None:
                 "steps": args.max_steps,
                 "reset_obs_max": float(diff[:, 0].max()),
                 "steps_obs_max": float(diff[:, 1:].max()),
+                # which of the 39 observation entries differs most, at reset and over the steps
+                "reset_worst_index": int(diff[:, 0].max(axis=0).argmax()),
+                "steps_worst_index": int(diff[:, 1:].max(axis=(0, 1)).argmax()),
                 "hand_max_m": float(np.linalg.norm(diff[:, :, :3], axis=-1).max()),
                 "finite": bool(np.isfinite(obs["mjx"]).all()),
+                "mjx_ok": oks["mjx"],  # fraction not flagged (non-finite, contact cap)
                 "mjx_compile_s": times["mjx"],
                 "c_compile_s": times["c"],
                 "mjx_changes": scenes["mjx"].mjx_changes,
@@ -365,14 +370,16 @@ def mjx_check(args: argparse.Namespace) -> None:
 def mjx_forward(args: argparse.Namespace) -> None:
     """Per task, one `mjx.forward` of the mirror's mjx model (one env at its default state,
     jitted; the second call timed), with MJX's static contact slots and constraint rows; with
-    `--max-contact-points K`, MJX's numeric that keeps the K deepest contacts per condim."""
+    `--max-contact-points K`, MJX's cap (the K deepest contacts per condim) set to K in place of
+    the mirror's (-1: no cap)."""
     from mujoco import mjx
 
     for task in tasks_of(args.tasks):
         scene = build_scene("metaworld_mjx", {"task": task}, backend="mjx", n_envs=1)
         spec = scene.spec.copy()
-        if args.max_contact_points:
-            spec.add_numeric(name="max_contact_points", data=[args.max_contact_points])
+        if args.max_contact_points is not None:
+            (cap,) = [n for n in spec.numerics if n.name == "max_contact_points"]
+            cap.data = [args.max_contact_points]
         m = spec.compile()
         mx, d = mjx.put_model(m, impl="jax"), mjx.make_data(m, impl="jax")
         d = jax.jit(mjx.kinematics)(mx, d)
@@ -388,7 +395,7 @@ def mjx_forward(args: argparse.Namespace) -> None:
                 "kind": "mjx-forward",
                 "task": task,
                 "device": str(jax.devices()[0].device_kind),
-                "max_contact_points": args.max_contact_points,
+                "max_contact_points": int(m.numeric_data[m.numeric("max_contact_points").id]),
                 "contact_slots": int(d._impl.contact.dist.shape[0]),
                 "constraint_rows": int(d._impl.efc_J.shape[0]),
                 "compile_s": compile_s,
@@ -521,7 +528,9 @@ def main() -> int:
     parser.add_argument("--sync", type=Path, help=argparse.SUPPRESS)  # `child` only
     parser.add_argument("--index", type=int, help=argparse.SUPPRESS)
     parser.add_argument("--poses-before-step", action="store_true", help="see module doc")
-    parser.add_argument("--max-contact-points", type=int, help="`mjx-forward`: MJX's cap")
+    parser.add_argument(
+        "--max-contact-points", type=int, help="`mjx-forward`: MJX's cap instead of the mirror's"
+    )
     parser.add_argument(
         "--warp-graph",
         choices=("WARP", "JAX", "NONE", "WARP_STAGED", "WARP_STAGED_EX"),

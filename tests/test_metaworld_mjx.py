@@ -178,7 +178,11 @@ def test_mjx_model_observes_metaworlds_frames():
     from openral_mjx.scenes.metaworld_mjx.assets import load_spec
 
     scene = make_scene("metaworld_mjx", {"task": "reach-wall-v3"}, backend="mjx")
-    assert scene.mjx_changes == {"cylinders_as_prisms": 1, "margins_zeroed": 4}
+    assert scene.mjx_changes == {
+        "cylinders_as_prisms": 1,
+        "margins_zeroed": 4,
+        "contacts_per_condim": 64,
+    }
     m = scene.mj_model
     original = load_spec(TASKS["reach-wall-v3"].xml).compile()
     quats = []
@@ -193,6 +197,22 @@ def test_mjx_model_observes_metaworlds_frames():
     assert np.abs(np.abs(quats[0] @ quats[1]) - 1) > 0.1  # the prism's own frame is turned
     turned = np.asarray(quat_mul(jax.numpy.asarray(quats[1]), scene._geom_frames[0]))
     np.testing.assert_allclose(np.abs(turned @ quats[0]), 1.0, atol=1e-6)
+
+
+def test_mjx_copy_caps_contact_slots_and_the_backend_checks_the_cap():
+    """box-close's mjx copy keeps 64 contacts per condim of MJX's 780 slots, and the `mjx`
+    backend watches each capped group (tests/test_mjx_contact_cap.py: what the check does)."""
+    from mujoco.mjx._src import collision_driver
+
+    from openral_mjx.physics.mjx_backend import capped_contact_groups
+
+    scene = make_scene("metaworld_mjx", {"task": "box-close-v3"}, backend="mjx")
+    m = scene.mj_model
+    groups = capped_contact_groups(m)
+    slots = collision_driver.make_condim(m)
+    assert len(slots) == 64 * len(np.unique(slots)) == 128, len(slots)
+    assert groups == [(0, 64), (64, 64)]  # both condims (3 and 4) truncated, 780 slots before
+    assert scene.backend._capped == groups
 
 
 @pytest.mark.slow  # MJX compiles MetaWorld's mesh collisions for minutes on a CPU

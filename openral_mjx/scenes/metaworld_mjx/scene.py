@@ -68,20 +68,32 @@ from openral_mjx.scenes.sensor_obs import (
 N_DRAWS = 32  # candidate random vectors per reset; P(no draw accepted) is negligible
 OBS_SIZES = {"hand": 3, "gripper": 1, "objects": 14, "prev": 18, "goal": 3}
 _MOCAP_QUAT = np.asarray(mw.MOCAP_QUAT) / np.linalg.norm(mw.MOCAP_QUAT)
+# MJX contact slots kept per condim (its `max_contact_points`). Uncapped, MJX gives every
+# candidate pair its slots and constraint rows every step (box-close: 780 slots, 2,995 rows;
+# 14 s per solve on a 2-core CPU, 20 ms at 32 per condim). MetaWorld's experts, in MuJoCo C,
+# have at most 46 active contacts of one condim at once (peg-insert-side; 3 seeds of every
+# task); an env that may exceed the cap is counted diverged by the `mjx` backend.
+MJX_CONTACTS_PER_CONDIM = 64
 
 
 def for_mjx(spec: mujoco.MjSpec) -> dict[str, int]:
     """Make `spec` collide under MJX's JAX implementation, which has no cylinder-box pair and
     no contact margin on mesh pairs: colliding cylinders become 16-gon prisms, and colliding
-    geoms lose their margin (MetaWorld's claws and pads have 1 mm). Returns what changed; the
-    agreement table measures the effect (``--backend mjx``)."""
+    geoms lose their margin (MetaWorld's claws and pads have 1 mm). Contact slots are capped
+    (`MJX_CONTACTS_PER_CONDIM`). Returns what changed; the agreement table measures the effect
+    (``--backend mjx``)."""
     prisms = cylinders_as_prisms(spec)
     margins = 0
     for geom in spec.geoms:
         if (geom.contype or geom.conaffinity) and (geom.margin or geom.gap):
             geom.margin, geom.gap = 0.0, 0.0
             margins += 1
-    return {"cylinders_as_prisms": prisms, "margins_zeroed": margins}
+    spec.add_numeric(name="max_contact_points", data=[MJX_CONTACTS_PER_CONDIM])
+    return {
+        "cylinders_as_prisms": prisms,
+        "margins_zeroed": margins,
+        "contacts_per_condim": MJX_CONTACTS_PER_CONDIM,
+    }
 
 
 def hand_reset_state(m: mujoco.MjModel, hand_init_pos: tuple[float, ...]) -> mujoco.MjData:
@@ -263,10 +275,14 @@ class MetaWorldMjx(Scene):
         if t.moved_bodies:
             pos = jnp.stack([moved[b] for b in t.moved_bodies]).astype(jnp.float32)
             fields = {"body_pos": self._body_pos.at[self._moved_ids].set(pos)}
+        reset_ok = jnp.ones((), bool)
         if t.hand_reset_per_episode:
-            hand_qpos, hand_qvel = self._hand_reset(fields)
+            hand_qpos, hand_qvel, reset_ok = self._hand_reset(fields)
             qpos, qvel, _ = t.place(self.facts, vec, hand_qpos, hand_qvel)
         physics = self.backend.init(qpos, qvel, fields=fields)
+        # an env whose simulated reset could not be trusted stays flagged (counted diverged)
+        q = physics.quantities
+        physics = physics.replace(quantities=q.replace(ok=q.ok & reset_ok))
         view = self._view(physics)
         episode = t.episode(self.facts, vec, view)
         curr = self._current(view)
@@ -290,10 +306,11 @@ class MetaWorldMjx(Scene):
             info=info,
         )
 
-    def _hand_reset(self, fields: dict[str, jax.Array]) -> tuple[jax.Array, jax.Array]:
+    def _hand_reset(self, fields: dict[str, jax.Array]) -> tuple[jax.Array, jax.Array, jax.Array]:
         """MetaWorld's hand reset simulated with this episode's fixed bodies in place (from
         the model's default joint state: MetaWorld resets the data before its second, final
-        `reset_model`, whose hand reset sees the bodies the first one moved)."""
+        `reset_model`, whose hand reset sees the bodies the first one moved). Returns the
+        joint positions and velocities it ends in, and whether its physics stayed ok."""
         m = self.mj_model
         physics = self.backend.init(
             jnp.asarray(m.qpos0, jnp.float32), jnp.zeros(m.nv, jnp.float32), fields=fields
@@ -308,7 +325,7 @@ class MetaWorldMjx(Scene):
             physics,
         )
         q = physics.quantities
-        return q.qpos, q.qvel
+        return q.qpos, q.qvel, q.ok
 
     def check_reward(self) -> None:
         """`ConfigError` unless this task's reward is MetaWorld's (other tasks return 0):

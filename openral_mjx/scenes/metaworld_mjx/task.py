@@ -211,14 +211,40 @@ class MirrorTask:
         return jnp.zeros((), jnp.float32)
 
 
-def long_tail_tolerance(x: jax.Array, upper: float, margin: jax.Array) -> jax.Array:
-    """MetaWorld's ``reward_utils.tolerance(x, bounds=(0, upper), margin, "long_tail")`` for
-    x >= 0: 1 inside the bounds, else 1 / (d^2 (1/0.1 - 1) + 1) with d = (x - upper) / margin
-    (0.1 at one margin out); with a zero margin, the indicator of the bounds."""
+def tolerance(
+    x: jax.Array, upper: float, margin: jax.Array, sigmoid: str = "long_tail"
+) -> jax.Array:
+    """MetaWorld's ``reward_utils.tolerance(x, bounds=(0, upper), margin, sigmoid)`` for
+    x >= 0: 1 inside the bounds, else the sigmoid of d = (x - upper) / margin, 0.1 at one
+    margin out: ``long_tail`` 1 / (d^2 (1/0.1 - 1) + 1), ``gaussian`` exp(-d^2 ln(1/0.1));
+    with a zero margin, the indicator of the bounds."""
     inside = x <= upper
     d = (x - upper) / jnp.where(margin > 0, margin, 1.0)
-    tail = 1.0 / (d * d * (1.0 / 0.1 - 1.0) + 1.0)
+    if sigmoid == "long_tail":
+        tail = 1.0 / (d * d * (1.0 / 0.1 - 1.0) + 1.0)
+    elif sigmoid == "gaussian":
+        tail = jnp.exp(-0.5 * d * d * (-2.0 * jnp.log(0.1)))
+    else:
+        raise ValueError(f"sigmoid {sigmoid!r}: the mirror has 'long_tail' and 'gaussian'")
     return jnp.where(inside, 1.0, jnp.where(margin > 0, tail, 0.0))
+
+
+def long_tail_tolerance(x: jax.Array, upper: float, margin: jax.Array) -> jax.Array:
+    """`tolerance` with MetaWorld's ``long_tail`` sigmoid."""
+    return tolerance(x, upper, margin, "long_tail")
+
+
+def hamacher_product(a: jax.Array, b: jax.Array) -> jax.Array:
+    """MetaWorld's ``reward_utils.hamacher_product``: a b / (a + b - a b), 0 where both are 0."""
+    den = a + b - a * b
+    return jnp.where(den > 0, a * b / jnp.where(den > 0, den, 1.0), 0.0)
+
+
+def init_tcp(facts: ModelFacts) -> jax.Array:
+    """MetaWorld's ``init_tcp``: the tcp centre its hand reset ends in (for a task whose hand
+    reset is the same every episode)."""
+    right, left = facts.rest["site:rightEndEffector"], facts.rest["site:leftEndEffector"]
+    return jnp.asarray((right + left) / 2.0, jnp.float32)
 
 
 def at_rest_height(facts: ModelFacts, xy: jax.Array, rest: str, dtype: Any = None) -> jax.Array:

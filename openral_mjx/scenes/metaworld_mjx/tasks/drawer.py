@@ -7,6 +7,10 @@ closed handle, drawn position + (0, -0.16, 0.09); it observes ``drawer_link`` + 
 ``TARGET_RADIUS`` 0.05, + 0.015). drawer-open leaves the slide and aims at drawn position
 + (0, -0.36, 0.09); it observes ``drawer_link`` + (0, -0.16, 0) with its ``xquat`` (w-x-y-z)
 and succeeds within 0.03. Both observe the goal clipped to the hand box (their goal space).
+
+Rewards (MetaWorld's v2): drawer-close, the gripper's reach to the handle (gaussian, within
+5 mm, through the closing gripper) and the handle's distance to the closed position (long
+tail), 10 within 0.065; drawer-open, caging the handle (xy weighted 3x) plus opening it, 5 each.
 """
 
 from __future__ import annotations
@@ -17,7 +21,14 @@ from typing import Any
 import jax
 import jax.numpy as jnp
 
-from openral_mjx.scenes.metaworld_mjx.task import MirrorTask, ModelFacts, View
+from openral_mjx.scenes.metaworld_mjx.task import (
+    MirrorTask,
+    ModelFacts,
+    View,
+    hamacher_product,
+    init_tcp,
+    tolerance,
+)
 
 SLIDE_QPOS = 9  # MetaWorld's drawer-close `_set_obj_xyz` writes qpos[9]
 
@@ -35,8 +46,14 @@ class _Drawer(MirrorTask):
     obj_offset: tuple[float, float, float]
     radius: float
 
+    has_reward = True
+
     def episode(self, facts: ModelFacts, vec: jax.Array, view: View) -> dict[str, jax.Array]:
-        return {"target_pos": vec + jnp.asarray(self.target_offset, vec.dtype)}
+        return {
+            "target_pos": vec + jnp.asarray(self.target_offset, vec.dtype),
+            "obj_init_pos": self._handle(view),  # the handle where the reset leaves it
+            "init_tcp": init_tcp(facts),
+        }
 
     def _handle(self, view: View) -> jax.Array:
         return view.body_pos("drawer_link") + jnp.asarray(self.obj_offset, jnp.float32)
@@ -59,6 +76,20 @@ class DrawerClose(_Drawer):
     def objects(self, view: View) -> tuple[jax.Array, jax.Array]:
         return self._handle(view), jnp.zeros(4, jnp.float32)
 
+    def reward(
+        self, obs: jax.Array, view: View, episode: Mapping[str, Any], action: jax.Array
+    ) -> jax.Array:
+        obj, target, start = obs[4:7], episode["target_pos"], episode["obj_init_pos"]
+        to_target = jnp.linalg.norm(obj - target)
+        to_target_init = jnp.linalg.norm(start - target)
+        in_place = tolerance(to_target, 0.05, jnp.abs(to_target_init - 0.05))
+        tcp_to_obj = jnp.linalg.norm(obj - view.tcp_center)
+        tcp_to_obj_init = jnp.linalg.norm(start - episode["init_tcp"])
+        reach = tolerance(tcp_to_obj, 0.005, jnp.abs(tcp_to_obj_init - 0.005), "gaussian")
+        reach = hamacher_product(reach, jnp.clip(action[-1], 0.0, 1.0))
+        reward = jnp.where(to_target <= 0.05 + 0.015, 1.0, hamacher_product(reach, in_place))
+        return 10.0 * reward
+
 
 class DrawerOpen(_Drawer):
     name = "drawer-open-v3"
@@ -73,6 +104,20 @@ class DrawerOpen(_Drawer):
 
     def objects(self, view: View) -> tuple[jax.Array, jax.Array]:
         return self._handle(view), view.body_quat("drawer_link")
+
+    def reward(
+        self, obs: jax.Array, view: View, episode: Mapping[str, Any], action: jax.Array
+    ) -> jax.Array:
+        del view, action
+        max_dist = 0.2  # how far the drawer opens (MetaWorld's ``maxDist``)
+        handle, target = obs[4:7], episode["target_pos"]
+        opening = tolerance(jnp.linalg.norm(handle - target), 0.02, max_dist)
+        handle_init = target + jnp.asarray([0.0, max_dist, 0.0], target.dtype)
+        scale = jnp.asarray([3.0, 3.0, 1.0], jnp.float32)
+        error = jnp.linalg.norm((handle - obs[:3]) * scale)
+        error_init = jnp.linalg.norm((handle_init - episode["init_tcp"]) * scale)
+        caging = tolerance(error, 0.01, error_init)
+        return 5.0 * (caging + opening)
 
 
 TASKS = (DrawerClose(), DrawerOpen())

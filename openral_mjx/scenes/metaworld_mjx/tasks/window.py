@@ -11,6 +11,12 @@ observation without recomputing them, so that observation (and the first step's 
 frame) shows the handle at the slide's hand-reset position (≈ 0), 0.2 m from where the close
 task's window starts. The mirror observes the same way (`observes_before_place`); the state,
 and every later observation, is the placed one.
+
+Reward (MetaWorld's v2): 10 x the Hamacher product of the tcp's reach to the handle (within
+2 cm; long tail for open, gaussian for close) and the handle's x distance to the goal (within
+0.05; its margin from the window's drawn x for open, the handle's for close). The reach margin
+uses MetaWorld's ``window_handle_pos_init``: the handle with the window moved, read before the
+slide is written (+ 0.2 m in x for close), which is where the placed slide puts it.
 """
 
 from __future__ import annotations
@@ -21,7 +27,14 @@ from typing import Any, ClassVar
 import jax
 import jax.numpy as jnp
 
-from openral_mjx.scenes.metaworld_mjx.task import MirrorTask, ModelFacts, View
+from openral_mjx.scenes.metaworld_mjx.task import (
+    MirrorTask,
+    ModelFacts,
+    View,
+    hamacher_product,
+    init_tcp,
+    tolerance,
+)
 
 
 class _Window(MirrorTask):
@@ -31,9 +44,13 @@ class _Window(MirrorTask):
     goal_high = (0.5, 1.0, 0.5)
     moved_bodies = ("window",)
     observes_before_place = True
+    has_reward = True
     handle: ClassVar[str]
     slide: ClassVar[float]
     goal_offset: ClassVar[tuple[float, float, float]]
+    reach_sigmoid: ClassVar[str]
+    # where the in-place term's margin is measured from: the window (open) or the handle (close)
+    in_place_from: ClassVar[str]
 
     def place(
         self, facts: ModelFacts, vec: jax.Array, qpos: jax.Array, qvel: jax.Array
@@ -45,6 +62,10 @@ class _Window(MirrorTask):
         return {
             "target_pos": vec[:3] + jnp.asarray(self.goal_offset, vec.dtype),
             "obj_init_pos": vec[:3],
+            # MetaWorld's `window_handle_pos_init`: the handle before the slide is written (at
+            # the hand reset's 0), + 0.2 m in x for close: where the slide, along x, puts it
+            "handle_init": view.site_pos(self.handle),
+            "init_tcp": init_tcp(facts),
         }
 
     def objects(self, view: View) -> tuple[jax.Array, jax.Array]:
@@ -52,6 +73,20 @@ class _Window(MirrorTask):
 
     def success(self, obs: jax.Array, view: View, episode: Mapping[str, Any]) -> jax.Array:
         return jnp.abs(view.site_pos(self.handle)[0] - episode["target_pos"][0]) <= 0.05
+
+    def reward(
+        self, obs: jax.Array, view: View, episode: Mapping[str, Any], action: jax.Array
+    ) -> jax.Array:
+        del obs, action
+        obj, target = view.site_pos(self.handle), episode["target_pos"]
+        start = episode["handle_init"]
+        to_target = jnp.abs(obj[0] - target[0])
+        from_x = episode[self.in_place_from][0]
+        in_place = tolerance(to_target, 0.05, jnp.abs(jnp.abs(from_x - target[0]) - 0.05))
+        tcp_to_obj = jnp.linalg.norm(obj - view.tcp_center)
+        tcp_to_obj_init = jnp.linalg.norm(start - episode["init_tcp"])
+        reach = tolerance(tcp_to_obj, 0.02, jnp.abs(tcp_to_obj_init - 0.02), self.reach_sigmoid)
+        return 10.0 * hamacher_product(reach, in_place)
 
 
 class WindowOpen(_Window):
@@ -62,6 +97,8 @@ class WindowOpen(_Window):
     handle = "handleOpenStart"
     slide = 0.0
     goal_offset = (0.2, 0.0, 0.0)
+    reach_sigmoid = "long_tail"
+    in_place_from = "obj_init_pos"
 
 
 class WindowClose(_Window):
@@ -72,6 +109,8 @@ class WindowClose(_Window):
     handle = "handleCloseStart"
     slide = 0.2
     goal_offset = (0.0, 0.0, 0.0)
+    reach_sigmoid = "gaussian"
+    in_place_from = "handle_init"
 
 
 TASKS = (WindowOpen(), WindowClose())

@@ -121,7 +121,7 @@ def test_reward_is_metaworlds_under_its_expert(task):
         state = step(state, jnp.asarray(actions[t]))
         mirror_r.append(np.asarray(state.reward))
     scene.close()
-    assert host_r.max() - host_r.min() > 4.0, (host_r.min(), host_r.max())  # a wide range
+    assert host_r.max() - host_r.min() > 1.0, (host_r.min(), host_r.max())  # not constant
     np.testing.assert_allclose(np.stack(mirror_r, axis=1), host_r, atol=0.01)
 
 

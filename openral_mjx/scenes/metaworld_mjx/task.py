@@ -214,12 +214,12 @@ class MirrorTask:
 def tolerance(
     x: jax.Array, upper: float, margin: jax.Array, sigmoid: str = "long_tail"
 ) -> jax.Array:
-    """MetaWorld's ``reward_utils.tolerance(x, bounds=(0, upper), margin, sigmoid)`` for
-    x >= 0: 1 inside the bounds, else the sigmoid of d = (x - upper) / margin, 0.1 at one
+    """MetaWorld's ``reward_utils.tolerance(x, bounds=(0, upper), margin, sigmoid)``: 1 inside
+    the bounds, else the sigmoid of d = (distance to the nearer bound) / margin, 0.1 at one
     margin out: ``long_tail`` 1 / (d^2 (1/0.1 - 1) + 1), ``gaussian`` exp(-d^2 ln(1/0.1));
     with a zero margin, the indicator of the bounds."""
-    inside = x <= upper
-    d = (x - upper) / jnp.where(margin > 0, margin, 1.0)
+    inside = (x >= 0) & (x <= upper)
+    d = jnp.where(x < 0, -x, x - upper) / jnp.where(margin > 0, margin, 1.0)
     if sigmoid == "long_tail":
         tail = 1.0 / (d * d * (1.0 / 0.1 - 1.0) + 1.0)
     elif sigmoid == "gaussian":

@@ -96,8 +96,12 @@ def for_mjx(spec: mujoco.MjSpec) -> dict[str, int]:
     }
 
 
-def hand_reset_state(m: mujoco.MjModel, hand_init_pos: tuple[float, ...]) -> mujoco.MjData:
-    """MetaWorld's ``_reset_hand`` from the model's default state, in MuJoCo C (float64)."""
+def hand_reset_state(
+    m: mujoco.MjModel, hand_init_pos: tuple[float, ...], forward: bool = True
+) -> mujoco.MjData:
+    """MetaWorld's ``_reset_hand`` from the model's default state, in MuJoCo C (float64);
+    without `forward`, the poses as its last ``mj_step`` leaves them (what MetaWorld reads as
+    ``init_tcp``)."""
     d = mujoco.MjData(m)
     mujoco.mj_resetData(m, d)
     mocap = m.body_mocapid[m.body("mocap").id]
@@ -106,7 +110,8 @@ def hand_reset_state(m: mujoco.MjModel, hand_init_pos: tuple[float, ...]) -> muj
         d.mocap_quat[mocap] = mw.MOCAP_QUAT
         d.ctrl[:] = (-1.0, 1.0)
         mujoco.mj_step(m, d, nstep=mw.FRAME_SKIP)
-    mujoco.mj_forward(m, d)
+    if forward:
+        mujoco.mj_forward(m, d)
     return d
 
 
@@ -122,6 +127,9 @@ def model_facts(m: mujoco.MjModel, task: mw.MirrorTask) -> tuple[mw.ModelFacts, 
     for i in range(m.ngeom):
         if m.geom(i).name:
             rest[f"geom:{m.geom(i).name}"] = d.geom_xpos[i].copy()
+    stale = hand_reset_state(m, task.hand_init_pos, forward=False)
+    ends = [stale.site_xpos[m.site(n).id] for n in ("rightEndEffector", "leftEndEffector")]
+    rest["init_tcp"] = (ends[0] + ends[1]) / 2.0  # MetaWorld's, read before a forward pass
     joints = [m.joint(i) for i in range(m.njnt)]
     facts = mw.ModelFacts(
         qpos_adr={j.name: int(j.qposadr[0]) for j in joints},

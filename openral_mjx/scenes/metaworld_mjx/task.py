@@ -212,14 +212,18 @@ class MirrorTask:
 
 
 def tolerance(
-    x: jax.Array, upper: float, margin: jax.Array, sigmoid: str = "long_tail"
+    x: jax.Array,
+    upper: float,
+    margin: jax.Array,
+    sigmoid: str = "long_tail",
+    lower: float = 0.0,
 ) -> jax.Array:
-    """MetaWorld's ``reward_utils.tolerance(x, bounds=(0, upper), margin, sigmoid)``: 1 inside
-    the bounds, else the sigmoid of d = (distance to the nearer bound) / margin, 0.1 at one
-    margin out: ``long_tail`` 1 / (d^2 (1/0.1 - 1) + 1), ``gaussian`` exp(-d^2 ln(1/0.1));
+    """MetaWorld's ``reward_utils.tolerance(x, bounds=(lower, upper), margin, sigmoid)``: 1
+    inside the bounds, else the sigmoid of d = (distance to the nearer bound) / margin, 0.1 at
+    one margin out: ``long_tail`` 1 / (d^2 (1/0.1 - 1) + 1), ``gaussian`` exp(-d^2 ln(1/0.1));
     with a zero margin, the indicator of the bounds."""
-    inside = (x >= 0) & (x <= upper)
-    d = jnp.where(x < 0, -x, x - upper) / jnp.where(margin > 0, margin, 1.0)
+    inside = (x >= lower) & (x <= upper)
+    d = jnp.where(x < lower, lower - x, x - upper) / jnp.where(margin > 0, margin, 1.0)
     if sigmoid == "long_tail":
         tail = 1.0 / (d * d * (1.0 / 0.1 - 1.0) + 1.0)
     elif sigmoid == "gaussian":
@@ -240,11 +244,37 @@ def hamacher_product(a: jax.Array, b: jax.Array) -> jax.Array:
     return jnp.where(den > 0, a * b / jnp.where(den > 0, den, 1.0), 0.0)
 
 
+def gripper_caging(
+    view: View,
+    episode: Mapping[str, Any],
+    action: jax.Array,
+    obj: jax.Array,
+    obj_radius: float,
+    pad_success_thresh: float,
+    xz_thresh: float,
+) -> jax.Array:
+    """MetaWorld's base ``_gripper_caging_reward`` with ``high_density`` (the task's view must
+    hold the ``leftpad`` and ``rightpad`` bodies; `episode` ``obj_init_pos`` and ``init_tcp``):
+    the pads either side of the object in y, the tcp over it in x-z, then the grip closing."""
+    start = episode["obj_init_pos"]
+    pads_y = jnp.stack([view.body_pos("leftpad")[1], view.body_pos("rightpad")[1]])
+    margins = jnp.abs(jnp.abs(pads_y - start[1]) - pad_success_thresh)
+    lr = [
+        tolerance(jnp.abs(pads_y[i] - obj[1]), pad_success_thresh, margins[i], lower=obj_radius)
+        for i in range(2)
+    ]
+    xz = jnp.asarray([0, 2])
+    xz_margin = jnp.linalg.norm(start[xz] - episode["init_tcp"][xz]) - xz_thresh
+    caging_xz = tolerance(jnp.linalg.norm(view.tcp_center[xz] - obj[xz]), xz_thresh, xz_margin)
+    caging = hamacher_product(hamacher_product(lr[0], lr[1]), caging_xz)
+    gripping = jnp.where(caging > 0.97, jnp.clip(action[-1], 0.0, 1.0), 0.0)
+    return (hamacher_product(caging, gripping) + caging) / 2.0
+
+
 def init_tcp(facts: ModelFacts) -> jax.Array:
-    """MetaWorld's ``init_tcp``: the tcp centre its hand reset ends in (for a task whose hand
-    reset is the same every episode)."""
-    right, left = facts.rest["site:rightEndEffector"], facts.rest["site:leftEndEffector"]
-    return jnp.asarray((right + left) / 2.0, jnp.float32)
+    """MetaWorld's ``init_tcp``: the tcp centre its hand reset ends in, as its last physics
+    step leaves the poses (for a task whose hand reset is the same every episode)."""
+    return jnp.asarray(facts.rest["init_tcp"], jnp.float32)
 
 
 def at_rest_height(facts: ModelFacts, xy: jax.Array, rest: str, dtype: Any = None) -> jax.Array:

@@ -18,8 +18,11 @@ from openral_mjx.scenes.metaworld_mjx.task import (
     ModelFacts,
     View,
     at_rest_height,
+    gripper_caging,
+    init_tcp,
     long_tail_tolerance,
     matrix_quat,
+    tolerance,
 )
 
 
@@ -64,6 +67,8 @@ class Push(_Puck):
     goal_high = (0.1, 0.9, 0.02)
     rest_key = "body:obj"  # the rest height the drawn xy are put at (`facts.rest`)
     success_radius = 0.05
+    bodies = ("obj", "leftpad", "rightpad")
+    has_reward = True
 
     def obj_init(self, facts: ModelFacts, vec: jax.Array) -> jax.Array:
         # `fix_extreme_obj_pos`: the drawn xy at the puck's rest height
@@ -71,6 +76,24 @@ class Push(_Puck):
 
     def target(self, facts: ModelFacts, vec: jax.Array, view: View) -> jax.Array:
         return at_rest_height(facts, vec[3:5], self.rest_key)
+
+    def episode(self, facts: ModelFacts, vec: jax.Array, view: View) -> dict[str, jax.Array]:
+        return {**super().episode(facts, vec, view), "init_tcp": init_tcp(facts)}
+
+    def reward(
+        self, obs: jax.Array, view: View, episode: Mapping[str, Any], action: jax.Array
+    ) -> jax.Array:
+        """MetaWorld's v2: caging and gripping the puck (2x), and once the open gripper is
+        within 2 cm of it, again that plus 1 plus the puck's approach to the goal (5x); 10
+        within 0.05 of the goal."""
+        obj, target = obs[4:7], episode["target_pos"]
+        to_target = jnp.linalg.norm(obj - target)
+        in_place = tolerance(to_target, 0.05, jnp.linalg.norm(episode["obj_init_pos"] - target))
+        grasped = gripper_caging(view, episode, action, obj, 0.015, 0.05, 0.005)
+        reward = 2.0 * grasped
+        near = (jnp.linalg.norm(obj - view.tcp_center) < 0.02) & (obs[3] > 0)
+        reward = jnp.where(near, 2.0 * reward + 1.0 + 5.0 * in_place, reward)
+        return jnp.where(to_target < 0.05, 10.0, reward)
 
 
 class PickPlace(_Puck):

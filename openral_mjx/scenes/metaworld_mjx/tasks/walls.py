@@ -11,9 +11,13 @@ within 0.05 of the goal (its v2 reward is reach-v3's).
 
 from __future__ import annotations
 
-import jax
+from collections.abc import Mapping
+from typing import Any
 
-from openral_mjx.scenes.metaworld_mjx.task import View, matrix_quat
+import jax
+import jax.numpy as jnp
+
+from openral_mjx.scenes.metaworld_mjx.task import View, gripper_caging, matrix_quat, tolerance
 from openral_mjx.scenes.metaworld_mjx.tasks.reach_push_pick import Push, Reach
 
 
@@ -30,6 +34,28 @@ class PushWall(Push):
 
     def objects(self, view: View) -> tuple[jax.Array, jax.Array]:
         return view.geom_pos("objGeom"), matrix_quat(view.geom_quat("objGeom"))
+
+    def reward(
+        self, obs: jax.Array, view: View, episode: Mapping[str, Any], action: jax.Array
+    ) -> jax.Array:
+        """MetaWorld's v2: push's, but the puck is led round the wall by a midpoint (x weighted
+        3x) before the goal counts."""
+        obj, target, start = obs[4:7], episode["target_pos"], episode["obj_init_pos"]
+        midpoint = jnp.stack([jnp.asarray(-0.05, obj.dtype), jnp.asarray(0.77, obj.dtype), obj[2]])
+        scale = jnp.asarray([3.0, 1.0, 1.0], jnp.float32)
+        to_mid = tolerance(
+            jnp.linalg.norm((obj - midpoint) * scale),
+            0.05,
+            jnp.linalg.norm((start - midpoint) * scale),
+        )
+        to_target = jnp.linalg.norm(obj - target)
+        in_place = tolerance(to_target, 0.05, jnp.linalg.norm(start - target))
+        grasped = 2.0 * gripper_caging(view, episode, action, obj, 0.015, 0.05, 0.005)
+        near = (jnp.linalg.norm(obj - view.tcp_center) < 0.02) & (obs[3] > 0)
+        past_wall = obj[1] > 0.75
+        past = jnp.where(past_wall, grasped + 5.0 + 3.0 * in_place, grasped + 1.0 + 4.0 * to_mid)
+        reward = jnp.where(near, past, grasped)
+        return jnp.where(to_target < 0.05, 10.0, reward)
 
 
 class ReachWall(Reach):

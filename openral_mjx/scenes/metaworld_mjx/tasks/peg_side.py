@@ -22,10 +22,34 @@ from typing import Any
 import jax
 import jax.numpy as jnp
 
-from openral_mjx.scenes.metaworld_mjx.task import MirrorTask, ModelFacts, View, matrix_quat
+from openral_mjx.scenes.metaworld_mjx.task import (
+    MirrorTask,
+    ModelFacts,
+    View,
+    gripper_caging,
+    hamacher_product,
+    init_tcp,
+    matrix_quat,
+    tolerance,
+)
 
 FREE_QPOS, FREE_DOF = 9, 9  # MetaWorld's `_set_obj_xyz` writes qpos[9:12], qvel[9:15]
 INSERT_GOAL_OFFSET = (0.03, 0.0, 0.13)
+# Corners of the two boxes beside the hole, where MetaWorld's reward fades as the peg's head
+# nears the wall (`rect_prism_tolerance`): (the corner where it is 0, the corner where 1)
+COLLISION_BOXES = tuple(
+    (f"bottom_right_corner_collision_box_{i}", f"top_left_corner_collision_box_{i}") for i in (1, 2)
+)
+
+
+def rect_prism_tolerance(curr: jax.Array, zero: jax.Array, one: jax.Array) -> jax.Array:
+    """MetaWorld's ``reward_utils.rect_prism_tolerance``: inside the box spanned by corners
+    `zero` and `one`, the product of `curr`'s fractions of the way from `zero` to `one` per
+    axis; outside it, 1."""
+    inside = jnp.all((curr >= jnp.minimum(zero, one)) & (curr <= jnp.maximum(zero, one)))
+    return jnp.where(inside, jnp.prod((curr - zero) / (one - zero)), 1.0)
+
+
 PLUG_OFFSET = (0.044, 0.0, 0.131)
 UNPLUG_GOAL_OFFSET = (0.15, 0.0, 0.0)
 
@@ -38,9 +62,10 @@ class PegInsertSide(MirrorTask):
     reset_high = (0.2, 0.7, 0.02, -0.25, 0.7, 0.001)
     goal_low = (-0.35 + 0.03, 0.4, -0.001 + 0.13)
     goal_high = (-0.25 + 0.03, 0.7, 0.001 + 0.13)
-    bodies = ("peg",)
-    sites = ("pegGrasp", "pegHead")
+    bodies = ("peg", "leftpad", "rightpad")
+    sites = ("pegGrasp", "pegHead", *(s for box in COLLISION_BOXES for s in box))
     moved_bodies = ("box",)
+    has_reward = True
 
     def accept(self, vec: jax.Array) -> jax.Array:
         return jnp.linalg.norm(vec[:2] - vec[3:5]) >= 0.1
@@ -56,7 +81,9 @@ class PegInsertSide(MirrorTask):
         return {
             "target_pos": vec[3:6] + jnp.asarray(INSERT_GOAL_OFFSET),
             "obj_init_pos": vec[:3],
-            "peg_head_pos_init": view.site_pos("pegHead"),
+            # read after the hand reset, before the peg is placed
+            "peg_head_pos_init": jnp.asarray(facts.rest["site:pegHead"], jnp.float32),
+            "init_tcp": init_tcp(facts),
         }
 
     def objects(self, view: View) -> tuple[jax.Array, jax.Array]:
@@ -66,6 +93,31 @@ class PegInsertSide(MirrorTask):
         scale = jnp.asarray((1.0, 2.0, 2.0))
         head = view.site_pos("pegHead")
         return jnp.linalg.norm((head - episode["target_pos"]) * scale) <= 0.07
+
+    def reward(
+        self, obs: jax.Array, view: View, episode: Mapping[str, Any], action: jax.Array
+    ) -> jax.Array:
+        """MetaWorld's v2: the peg caged and gripped (or held lifted), times its head's
+        approach to the hole (y and z weighted 2x) faded near the wall's boxes, plus 1 and 5x
+        that approach while it is held lifted; 10 once inserted."""
+        obj, target, start = obs[4:7], episode["target_pos"], episode["obj_init_pos"]
+        scale = jnp.asarray([1.0, 2.0, 2.0], jnp.float32)
+        head = view.site_pos("pegHead")
+        to_target = jnp.linalg.norm((head - target) * scale)
+        margin = jnp.linalg.norm((episode["peg_head_pos_init"] - target) * scale)
+        boxes = [
+            rect_prism_tolerance(head, view.site_pos(zero), view.site_pos(one))
+            for zero, one in COLLISION_BOXES
+        ]
+        in_place = hamacher_product(
+            tolerance(to_target, 0.07, margin), hamacher_product(boxes[1], boxes[0])
+        )
+        tcp_to_obj = jnp.linalg.norm(obj - view.tcp_center)
+        held = (tcp_to_obj < 0.08) & (obs[3] > 0) & (obj[2] - 0.01 > start[2])
+        caged = gripper_caging(view, episode, action, obj, 0.0075, 0.03, 0.005)
+        reward = hamacher_product(jnp.where(held, 1.0, caged), in_place)
+        reward = jnp.where(held, reward + 1.0 + 5.0 * in_place, reward)
+        return jnp.where(to_target <= 0.07, 10.0, reward)
 
 
 class PegUnplugSide(MirrorTask):

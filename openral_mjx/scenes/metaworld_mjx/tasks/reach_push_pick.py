@@ -19,6 +19,7 @@ from openral_mjx.scenes.metaworld_mjx.task import (
     View,
     at_rest_height,
     gripper_caging,
+    hamacher_product,
     init_tcp,
     long_tail_tolerance,
     matrix_quat,
@@ -100,6 +101,42 @@ class PickPlace(_Puck):
     name = "pick-place-v3"
     xml = "sawyer_xyz/sawyer_pick_place_v3.xml"
     success_radius = 0.07
+    bodies = ("obj", "leftpad", "rightpad")
+    has_reward = True
+
+    def episode(self, facts: ModelFacts, vec: jax.Array, view: View) -> dict[str, jax.Array]:
+        return {**super().episode(facts, vec, view), "init_tcp": init_tcp(facts)}
+
+    def _caging(
+        self, view: View, episode: Mapping[str, Any], action: jax.Array, obj: jax.Array
+    ) -> jax.Array:
+        """pick-place's own ``_gripper_caging_reward``. Its margins read the pads' "initial"
+        positions, which MetaWorld holds as views of the live data: the pads where they are."""
+        left, right = view.body_pos("leftpad")[1], view.body_pos("rightpad")[1]
+        margin_l = jnp.abs(jnp.abs(obj[1] - left) - 0.05)
+        margin_r = jnp.abs(jnp.abs(obj[1] - right) - 0.05)
+        caging_l = tolerance(left - obj[1], 0.05, margin_l, lower=0.015)
+        caging_r = tolerance(obj[1] - right, 0.05, margin_r, lower=0.015)
+        xz = jnp.asarray([0, 2])
+        margin = jnp.linalg.norm(episode["obj_init_pos"][xz] - episode["init_tcp"][xz]) - 0.005
+        caging_xz = tolerance(jnp.linalg.norm(view.tcp_center[xz] - obj[xz]), 0.005, margin)
+        caging = hamacher_product(hamacher_product(caging_l, caging_r), caging_xz)
+        gripping = jnp.where(caging > 0.97, jnp.clip(action[-1], 0.0, 1.0), 0.0)
+        return (hamacher_product(caging, gripping) + caging) / 2.0
+
+    def reward(
+        self, obs: jax.Array, view: View, episode: Mapping[str, Any], action: jax.Array
+    ) -> jax.Array:
+        """MetaWorld's v2: caging-and-gripping times the puck's approach to the goal, plus 1
+        and 5x the approach once the open gripper holds it lifted 1 cm; 10 within 0.05."""
+        obj, target, start = obs[4:7], episode["target_pos"], episode["obj_init_pos"]
+        to_target = jnp.linalg.norm(obj - target)
+        in_place = tolerance(to_target, 0.05, jnp.linalg.norm(start - target))
+        reward = hamacher_product(self._caging(view, episode, action, obj), in_place)
+        near = jnp.linalg.norm(obj - view.tcp_center) < 0.02
+        lifted = near & (obs[3] > 0) & (obj[2] - 0.01 > start[2])
+        reward = jnp.where(lifted, reward + 1.0 + 5.0 * in_place, reward)
+        return jnp.where(to_target < 0.05, 10.0, reward)
 
 
 TASKS = (Reach(), Push(), PickPlace())

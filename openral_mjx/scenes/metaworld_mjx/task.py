@@ -61,7 +61,9 @@ class ModelFacts:
 
     `rest` holds world positions in the state right after MetaWorld's hand reset (objects still
     at the model's defaults): ``rest["body:obj"]``, ``rest["site:hole"]``, ``rest["geom:objGeom"]``
-    (what ``get_body_com`` / ``_get_site_pos`` / ``data.geom(...).xpos`` return there).
+    (what ``get_body_com`` / ``_get_site_pos`` / ``data.geom(...).xpos`` return there), and
+    ``rest["init_tcp"]``, MetaWorld's ``init_tcp``: the tcp centre as the hand reset's last
+    physics step leaves the poses (before any forward pass).
     """
 
     qpos_adr: Mapping[str, int]  # joint name -> first qpos index

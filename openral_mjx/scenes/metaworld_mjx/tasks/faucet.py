@@ -6,6 +6,9 @@ close: -); the handle's joint is left as the hand reset leaves it. Observed obje
 ``faucetBase`` body's ``xquat`` (w-x-y-z); the goal is clipped to the hand box (their goal
 space). Success: within 0.07 of the goal, for faucet-open measured from the observed handle
 + (-0.04, 0, 0.03).
+
+Reward (MetaWorld's v2, both): 2 x (2 x the tcp's reach to that point (gaussian, within 1 cm)
++ 3 x its approach to the goal (long tail, within 0.07)); 10 on success.
 """
 
 from __future__ import annotations
@@ -16,7 +19,13 @@ from typing import Any
 import jax
 import jax.numpy as jnp
 
-from openral_mjx.scenes.metaworld_mjx.task import ModelFacts, MovedBodyTask, View
+from openral_mjx.scenes.metaworld_mjx.task import (
+    ModelFacts,
+    MovedBodyTask,
+    View,
+    init_tcp,
+    tolerance,
+)
 
 HANDLE_LENGTH = 0.175
 
@@ -36,7 +45,7 @@ class _Faucet(MovedBodyTask):
 
     def episode(self, facts: ModelFacts, vec: jax.Array, view: View) -> dict[str, jax.Array]:
         offset = jnp.array([self.side * HANDLE_LENGTH, 0.0, 0.125], vec.dtype)
-        return {"target_pos": vec + offset, "obj_init_pos": vec}
+        return {"target_pos": vec + offset, "obj_init_pos": vec, "init_tcp": init_tcp(facts)}
 
     def objects(self, view: View) -> tuple[jax.Array, jax.Array]:
         handle = view.site_pos(self.handle_site) + jnp.array([0.0, 0.0, -0.01], jnp.float32)
@@ -45,6 +54,20 @@ class _Faucet(MovedBodyTask):
     def success(self, obs: jax.Array, view: View, episode: Mapping[str, Any]) -> jax.Array:
         obj = obs[4:7] + jnp.asarray(self.obs_offset, obs.dtype)
         return jnp.linalg.norm(obj - episode["target_pos"]) <= 0.07
+
+    has_reward = True
+
+    def reward(
+        self, obs: jax.Array, view: View, episode: Mapping[str, Any], action: jax.Array
+    ) -> jax.Array:
+        obj, target = obs[4:7] + jnp.asarray(self.obs_offset, obs.dtype), episode["target_pos"]
+        start = episode["obj_init_pos"]
+        to_target = jnp.linalg.norm(obj - target)
+        in_place = tolerance(to_target, 0.07, jnp.abs(jnp.linalg.norm(start - target) - 0.07))
+        tcp_to_obj = jnp.linalg.norm(obj - view.tcp_center)
+        margin = jnp.abs(jnp.linalg.norm(start - episode["init_tcp"]) - 0.01)
+        reach = tolerance(tcp_to_obj, 0.01, margin, "gaussian")
+        return jnp.where(to_target <= 0.07, 10.0, 2.0 * (2.0 * reach + 3.0 * in_place))
 
 
 class FaucetOpen(_Faucet):

@@ -140,7 +140,7 @@ def test_reward_is_metaworlds_under_its_expert(task):
         mirror_r.append(np.asarray(state.reward))
         mirror_obs.append(np.asarray(state.obs[:, :18]))
     scene.close()
-    assert host_r.max() - host_r.min() > 1.0, (host_r.min(), host_r.max())  # not constant
+    assert host_r.max() - host_r.min() > 0.5, (host_r.min(), host_r.max())  # not constant
     np.testing.assert_allclose(formula_r, host_r, rtol=1e-4, atol=1e-3)
     together = np.abs(np.stack(mirror_obs, axis=1) - host_obs).max(axis=-1) < 1e-3
     assert together[:, :10].all()  # the replay starts where MetaWorld does

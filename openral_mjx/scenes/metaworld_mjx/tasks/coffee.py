@@ -27,7 +27,10 @@ from openral_mjx.scenes.metaworld_mjx.task import (
     MirrorTask,
     ModelFacts,
     View,
+    hamacher_product,
+    init_tcp,
     matrix_quat,
+    tolerance,
 )
 
 MUG_QPOS = 0  # the mug's free joint position (qpos[0:3])
@@ -58,13 +61,31 @@ class CoffeeButton(MirrorTask):
         return qpos, qvel, {"coffee_machine": vec}
 
     def episode(self, facts: ModelFacts, vec: jax.Array, view: View) -> dict[str, jax.Array]:
-        return {"target_pos": vec + jnp.array([0.0, -0.22 + 0.03, 0.3]), "obj_init_pos": vec}
+        return {
+            "target_pos": vec + jnp.array([0.0, -0.22 + 0.03, 0.3]),
+            "obj_init_pos": vec,
+            "init_tcp": init_tcp(facts),
+        }
 
     def objects(self, view: View) -> tuple[jax.Array, jax.Array]:
         return view.site_pos("buttonStart"), jnp.array([1.0, 0.0, 0.0, 0.0])
 
     def success(self, obs: jax.Array, view: View, episode: Mapping[str, Any]) -> jax.Array:
         return jnp.abs(episode["target_pos"][1] - obs[5]) <= 0.02
+
+    has_reward = True
+
+    def reward(
+        self, obs: jax.Array, view: View, episode: Mapping[str, Any], action: jax.Array
+    ) -> jax.Array:
+        """MetaWorld's v2: button-press-v3's, with the press measured against the button's
+        0.03 m travel."""
+        obj = obs[4:7]
+        tcp_to_obj = jnp.linalg.norm(obj - view.tcp_center)
+        near = tolerance(tcp_to_obj, 0.05, jnp.linalg.norm(obj - episode["init_tcp"]))
+        pressed = tolerance(jnp.abs(episode["target_pos"][1] - obj[1]), 0.005, 0.03)
+        reward = 2.0 * hamacher_product(jnp.maximum(obs[3], 0.0), near)
+        return reward + jnp.where(tcp_to_obj <= 0.05, 8.0 * pressed, 0.0)
 
 
 class _Mug(FreeObjectTask):

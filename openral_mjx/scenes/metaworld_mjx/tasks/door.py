@@ -98,6 +98,21 @@ class DoorClose(_DoorPull):
     goal_high = (0.3, 0.75, 0.1501)
     door_angle = -1.5708
     goal_offset = (0.2, -0.2, 0.0)
+    has_reward = True
+
+    def reward(
+        self, obs: jax.Array, view: View, episode: Mapping[str, Any], action: jax.Array
+    ) -> jax.Array:
+        """MetaWorld's v2: the tcp at the goal (3) and the handle at it (6), gaussian; 10
+        within 0.05."""
+        obj, target = obs[4:7], episode["target_pos"]
+        to_target = jnp.linalg.norm(obj - target)
+        margin = jnp.linalg.norm(episode["obj_init_pos"] - target)
+        in_place = tolerance(to_target, 0.05, margin, "gaussian")
+        hand_margin = jnp.linalg.norm(jnp.asarray(self.hand_init_pos) - obj) + 0.1
+        tcp_to_target = jnp.linalg.norm(view.tcp_center - target)
+        hand = tolerance(tcp_to_target, 0.25 * 0.05, hand_margin, "gaussian")
+        return jnp.where(to_target < 0.05, 10.0, 3.0 * hand + 6.0 * in_place)
 
     def success(self, obs: jax.Array, view: View, episode: Mapping[str, Any]) -> jax.Array:
         return jnp.linalg.norm(obs[4:7] - episode["target_pos"]) <= 0.08

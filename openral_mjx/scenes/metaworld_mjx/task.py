@@ -254,10 +254,14 @@ def gripper_caging(
     obj_radius: float,
     pad_success_thresh: float,
     xz_thresh: float,
+    effort: float = 1.0,
+    reach_radius: float | None = None,
 ) -> jax.Array:
-    """MetaWorld's base ``_gripper_caging_reward`` with ``high_density`` (the task's view must
-    hold the ``leftpad`` and ``rightpad`` bodies; `episode` ``obj_init_pos`` and ``init_tcp``):
-    the pads either side of the object in y, the tcp over it in x-z, then the grip closing."""
+    """MetaWorld's base ``_gripper_caging_reward`` (the task's view must hold the ``leftpad``
+    and ``rightpad`` bodies; `episode` ``obj_init_pos`` and ``init_tcp``): the pads either
+    side of the object in y, the tcp over it in x-z, then the grip closing to `effort`. Its
+    ``high_density`` form, or with `reach_radius` (``object_reach_radius``) its
+    ``medium_density`` one, which averages in the tcp's reach to the object."""
     start = episode["obj_init_pos"]
     pads_y = jnp.stack([view.body_pos("leftpad")[1], view.body_pos("rightpad")[1]])
     margins = jnp.abs(jnp.abs(pads_y - start[1]) - pad_success_thresh)
@@ -269,8 +273,15 @@ def gripper_caging(
     xz_margin = jnp.linalg.norm(start[xz] - episode["init_tcp"][xz]) - xz_thresh
     caging_xz = tolerance(jnp.linalg.norm(view.tcp_center[xz] - obj[xz]), xz_thresh, xz_margin)
     caging = hamacher_product(hamacher_product(lr[0], lr[1]), caging_xz)
-    gripping = jnp.where(caging > 0.97, jnp.clip(action[-1], 0.0, 1.0), 0.0)
-    return (hamacher_product(caging, gripping) + caging) / 2.0
+    closed = jnp.clip(action[-1], 0.0, effort) / effort
+    gripping = jnp.where(caging > 0.97, closed, 0.0)
+    if reach_radius is None:
+        return (hamacher_product(caging, gripping) + caging) / 2.0
+    reach_init = jnp.linalg.norm(start - episode["init_tcp"])
+    reach = tolerance(
+        jnp.linalg.norm(obj - view.tcp_center), reach_radius, jnp.abs(reach_init - reach_radius)
+    )
+    return (hamacher_product(caging, gripping) + reach) / 2.0
 
 
 def init_tcp(facts: ModelFacts) -> jax.Array:

@@ -27,6 +27,7 @@ from openral_mjx.scenes.metaworld_mjx.task import (
     MirrorTask,
     ModelFacts,
     View,
+    gripper_caging,
     hamacher_product,
     init_tcp,
     matrix_quat,
@@ -91,7 +92,7 @@ class CoffeeButton(MirrorTask):
 class _Mug(FreeObjectTask):
     xml = "sawyer_xyz/sawyer_coffee.xml"
     hand_init_pos = (0.0, 0.4, 0.2)
-    bodies = ("obj",)
+    bodies = ("obj", "leftpad", "rightpad")
     geoms = ("mug",)
     moved_bodies = ("coffee_machine",)
     success_radius = 0.07
@@ -107,6 +108,28 @@ class _Mug(FreeObjectTask):
 
     def objects(self, view: View) -> tuple[jax.Array, jax.Array]:
         return view.body_pos("obj"), matrix_quat(view.geom_quat("mug"))
+
+    has_reward = True
+
+    def episode(self, facts: ModelFacts, vec: jax.Array, view: View) -> dict[str, jax.Array]:
+        return {**super().episode(facts, vec, view), "init_tcp": init_tcp(facts)}
+
+    def reward(
+        self, obs: jax.Array, view: View, episode: Mapping[str, Any], action: jax.Array
+    ) -> jax.Array:
+        """MetaWorld's v2 (push and pull alike): the mug caged (medium density, 0.7 effort)
+        times its approach to the goal (x and y weighted 2x), plus 1 + 5 x the approach while
+        the open gripper is within 4 cm of it; 10 within 0.05 (weighted)."""
+        obj, target = obs[4:7], episode["target_pos"]
+        scale = jnp.asarray([2.0, 2.0, 1.0], jnp.float32)
+        to_target = jnp.linalg.norm((obj - target) * scale)
+        margin = jnp.linalg.norm((episode["obj_init_pos"] - target) * scale)
+        in_place = tolerance(to_target, 0.05, margin)
+        grasped = gripper_caging(view, episode, action, obj, 0.02, 0.05, 0.05, 0.7, 0.04)
+        reward = hamacher_product(grasped, in_place)
+        near = (jnp.linalg.norm(obj - view.tcp_center) < 0.04) & (obs[3] > 0)
+        reward = jnp.where(near, reward + 1.0 + 5.0 * in_place, reward)
+        return jnp.where(to_target < 0.05, 10.0, reward)
 
 
 class CoffeePull(_Mug):

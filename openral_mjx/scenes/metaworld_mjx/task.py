@@ -255,13 +255,14 @@ def gripper_caging(
     pad_success_thresh: float,
     xz_thresh: float,
     effort: float = 1.0,
-    reach_radius: float | None = None,
+    density: str = "high",
+    reach_radius: float = 0.01,
 ) -> jax.Array:
     """MetaWorld's base ``_gripper_caging_reward`` (the task's view must hold the ``leftpad``
     and ``rightpad`` bodies; `episode` ``obj_init_pos`` and ``init_tcp``): the pads either
-    side of the object in y, the tcp over it in x-z, then the grip closing to `effort`. Its
-    ``high_density`` form, or with `reach_radius` (``object_reach_radius``) its
-    ``medium_density`` one, which averages in the tcp's reach to the object."""
+    side of the object in y, the tcp over it in x-z, then the grip closing to `effort`.
+    `density`: ``high`` averages in the caging, ``medium`` the tcp's reach to the object
+    (within `reach_radius`, MetaWorld's ``object_reach_radius``), ``low`` neither."""
     start = episode["obj_init_pos"]
     pads_y = jnp.stack([view.body_pos("leftpad")[1], view.body_pos("rightpad")[1]])
     margins = jnp.abs(jnp.abs(pads_y - start[1]) - pad_success_thresh)
@@ -275,13 +276,20 @@ def gripper_caging(
     caging = hamacher_product(hamacher_product(lr[0], lr[1]), caging_xz)
     closed = jnp.clip(action[-1], 0.0, effort) / effort
     gripping = jnp.where(caging > 0.97, closed, 0.0)
-    if reach_radius is None:
-        return (hamacher_product(caging, gripping) + caging) / 2.0
-    reach_init = jnp.linalg.norm(start - episode["init_tcp"])
-    reach = tolerance(
-        jnp.linalg.norm(obj - view.tcp_center), reach_radius, jnp.abs(reach_init - reach_radius)
-    )
-    return (hamacher_product(caging, gripping) + reach) / 2.0
+    held = hamacher_product(caging, gripping)
+    if density == "high":
+        return (held + caging) / 2.0
+    if density == "medium":
+        reach_init = jnp.linalg.norm(start - episode["init_tcp"])
+        reach = tolerance(
+            jnp.linalg.norm(obj - view.tcp_center),
+            reach_radius,
+            jnp.abs(reach_init - reach_radius),
+        )
+        return (held + reach) / 2.0
+    if density == "low":
+        return held
+    raise ValueError(f"density {density!r}: 'high', 'medium' or 'low'")
 
 
 def init_tcp(facts: ModelFacts) -> jax.Array:

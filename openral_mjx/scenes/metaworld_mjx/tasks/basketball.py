@@ -17,7 +17,15 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from openral_mjx.scenes.metaworld_mjx.task import FreeObjectTask, ModelFacts, View
+from openral_mjx.scenes.metaworld_mjx.task import (
+    FreeObjectTask,
+    ModelFacts,
+    View,
+    gripper_caging,
+    hamacher_product,
+    init_tcp,
+    tolerance,
+)
 
 BALL_QPOS = 9  # MetaWorld's `_set_obj_xyz`: qpos[9:12] = pos, qvel[9:15] = 0
 BALL_Z = float(np.float32(0.03))  # init_config["obj_init_pos"][-1] (a float32 array)
@@ -32,9 +40,10 @@ class Basketball(FreeObjectTask):
     reset_high = (0.1, 0.7, 0.0301, 0.1, 0.9 + 1e-7, 0.0)
     goal_low = (-0.1, 0.85 - 0.083, 0.2499)
     goal_high = (0.1, 0.9 + 1e-7 - 0.083, 0.2501)
-    bodies = ("bsktball",)
+    bodies = ("bsktball", "leftpad", "rightpad")
     sites = ("goal",)
     moved_bodies = ("basket_goal",)
+    has_reward = True
 
     def obj_init(self, facts: ModelFacts, vec: jax.Array) -> jax.Array:
         return jnp.concatenate([vec[:2], jnp.array([BALL_Z])])
@@ -56,6 +65,26 @@ class Basketball(FreeObjectTask):
         target = episode["target_pos"].at[2].set(0.3)
         error = (obs[4:7] - target) * jnp.array([1.0, 1.0, 2.0])
         return jnp.linalg.norm(error) <= TARGET_RADIUS
+
+    def episode(self, facts: ModelFacts, vec: jax.Array, view: View) -> dict[str, jax.Array]:
+        return {**super().episode(facts, vec, view), "init_tcp": init_tcp(facts)}
+
+    def reward(
+        self, obs: jax.Array, view: View, episode: Mapping[str, Any], action: jax.Array
+    ) -> jax.Array:
+        """MetaWorld's v2: the ball caged (or held lifted) times its approach to the hoop at
+        0.3 m (z weighted 2x), plus 1 + 5 x the approach while held lifted; 10 on success."""
+        obj, start = obs[4:7], episode["obj_init_pos"]
+        target = episode["target_pos"].at[2].set(0.3)
+        scale = jnp.asarray([1.0, 1.0, 2.0], jnp.float32)
+        to_target = jnp.linalg.norm((obj - target) * scale)
+        in_place = tolerance(to_target, TARGET_RADIUS, jnp.linalg.norm((start - target) * scale))
+        near = jnp.linalg.norm(obj - view.tcp_center) < 0.035
+        held = near & (obs[3] > 0) & (obj[2] - 0.01 > start[2])
+        caged = gripper_caging(view, episode, action, obj, 0.025, 0.06, 0.005)
+        reward = hamacher_product(jnp.where(held, 1.0, caged), in_place)
+        reward = jnp.where(held, reward + 1.0 + 5.0 * in_place, reward)
+        return jnp.where(to_target < TARGET_RADIUS, 10.0, reward)
 
 
 TASKS = (Basketball(),)

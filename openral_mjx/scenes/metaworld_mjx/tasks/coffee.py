@@ -125,7 +125,9 @@ class _Mug(FreeObjectTask):
         to_target = jnp.linalg.norm((obj - target) * scale)
         margin = jnp.linalg.norm((episode["obj_init_pos"] - target) * scale)
         in_place = tolerance(to_target, 0.05, margin)
-        grasped = gripper_caging(view, episode, action, obj, 0.02, 0.05, 0.05, 0.7, 0.04)
+        grasped = gripper_caging(
+            view, episode, action, obj, 0.02, 0.05, 0.05, 0.7, density="medium", reach_radius=0.04
+        )
         reward = hamacher_product(grasped, in_place)
         near = (jnp.linalg.norm(obj - view.tcp_center) < 0.04) & (obs[3] > 0)
         reward = jnp.where(near, reward + 1.0 + 5.0 * in_place, reward)

@@ -10,6 +10,9 @@ and the ``objGeom`` geom's orientation as scipy's quaternion. Success: the obser
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from typing import Any
+
 import jax
 import jax.numpy as jnp
 
@@ -18,7 +21,11 @@ from openral_mjx.scenes.metaworld_mjx.task import (
     ModelFacts,
     View,
     at_rest_height,
+    gripper_caging,
+    hamacher_product,
+    init_tcp,
     matrix_quat,
+    tolerance,
 )
 
 SHELF_DROP = (0.0, 0.0, 0.3)
@@ -32,7 +39,8 @@ class ShelfPlace(FreeObjectTask):
     reset_high = (0.1, 0.6, 0.021, 0.1, 0.9, 0.301)
     goal_low = (-0.1, 0.8, 0.299)
     goal_high = (0.1, 0.9, 0.301)
-    bodies = ("obj",)
+    bodies = ("obj", "leftpad", "rightpad")
+    has_reward = True
     geoms = ("objGeom",)
     moved_bodies = ("shelf",)
     min_goal_distance = 0.1
@@ -55,6 +63,33 @@ class ShelfPlace(FreeObjectTask):
 
     def objects(self, view: View) -> tuple[jax.Array, jax.Array]:
         return view.body_pos("obj"), matrix_quat(view.geom_quat("objGeom"))
+
+    def episode(self, facts: ModelFacts, vec: jax.Array, view: View) -> dict[str, jax.Array]:
+        return {**super().episode(facts, vec, view), "init_tcp": init_tcp(facts)}
+
+    def reward(
+        self, obs: jax.Array, view: View, episode: Mapping[str, Any], action: jax.Array
+    ) -> jax.Array:
+        """MetaWorld's v2: the block caged and gripped (low density) times its approach to
+        the goal; while held lifted, plus 1 + 5 x that approach, which fades in front of and
+        under the shelf and is 0 behind it; 10 within 0.05."""
+        obj, target, start = obs[4:7], episode["target_pos"], episode["obj_init_pos"]
+        to_target = jnp.linalg.norm(obj - target)
+        in_place = tolerance(to_target, 0.05, jnp.linalg.norm(start - target))
+        grasped = gripper_caging(view, episode, action, obj, 0.02, 0.05, 0.01, density="low")
+        reward = hamacher_product(grasped, in_place)
+        low = (obj[2] > 0.0) & (obj[2] < 0.24)
+        beside = (obj[0] > target[0] - 0.15) & (obj[0] < target[0] + 0.15)
+        front = (obj[1] > target[1] - 0.15) & (obj[1] < target[1])
+        z_scaling = (0.24 - obj[2]) / 0.24
+        y_scaling = (obj[1] - (target[1] - 0.15)) / 0.15
+        faded = jnp.clip(in_place - hamacher_product(y_scaling, z_scaling), 0.0, 1.0)
+        in_place = jnp.where(low & beside & front, faded, in_place)
+        in_place = jnp.where(low & beside & (obj[1] > target[1]), 0.0, in_place)
+        near = jnp.linalg.norm(obj - view.tcp_center) < 0.025
+        held = near & (obs[3] > 0) & (obj[2] - 0.01 > start[2])
+        reward = jnp.where(held, reward + 1.0 + 5.0 * in_place, reward)
+        return jnp.where(to_target < 0.05, 10.0, reward)
 
 
 TASKS = (ShelfPlace(),)

@@ -319,8 +319,8 @@ class MovedBodyTask(MirrorTask):
 class DrawnGoalTask(MirrorTask):
     """A task whose random vector is (object xyz, goal xyz). The episode's ``target_pos`` is
     `target` (default: the drawn goal), its ``obj_init_pos`` `obj_init` (default: the drawn
-    object position); success: the observed object (``obs[4:7]``) within `success_radius` of
-    the goal."""
+    object position), its ``init_tcp`` MetaWorld's (`init_tcp`); success: the observed object
+    (``obs[4:7]``) within `success_radius` of the goal."""
 
     success_radius: ClassVar[float]
 
@@ -335,10 +335,13 @@ class DrawnGoalTask(MirrorTask):
         return vec[3:6]
 
     def episode(self, facts: ModelFacts, vec: jax.Array, view: View) -> dict[str, jax.Array]:
-        return {
+        episode = {
             "target_pos": self.target(facts, vec, view),
             "obj_init_pos": self.obj_init(facts, vec),
         }
+        if not self.hand_reset_per_episode:  # else MetaWorld's comes from this episode's reset
+            episode["init_tcp"] = init_tcp(facts)
+        return episode
 
     def success(self, obs: jax.Array, view: View, episode: Mapping[str, Any]) -> jax.Array:
         return jnp.linalg.norm(obs[4:7] - episode["target_pos"]) <= self.success_radius

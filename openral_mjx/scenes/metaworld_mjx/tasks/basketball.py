@@ -23,7 +23,6 @@ from openral_mjx.scenes.metaworld_mjx.task import (
     View,
     gripper_caging,
     hamacher_product,
-    init_tcp,
     tolerance,
 )
 
@@ -65,9 +64,6 @@ class Basketball(FreeObjectTask):
         target = episode["target_pos"].at[2].set(0.3)
         error = (obs[4:7] - target) * jnp.array([1.0, 1.0, 2.0])
         return jnp.linalg.norm(error) <= TARGET_RADIUS
-
-    def episode(self, facts: ModelFacts, vec: jax.Array, view: View) -> dict[str, jax.Array]:
-        return {**super().episode(facts, vec, view), "init_tcp": init_tcp(facts)}
 
     def reward(
         self, obs: jax.Array, view: View, episode: Mapping[str, Any], action: jax.Array

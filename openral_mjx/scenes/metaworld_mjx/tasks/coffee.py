@@ -111,9 +111,6 @@ class _Mug(FreeObjectTask):
 
     has_reward = True
 
-    def episode(self, facts: ModelFacts, vec: jax.Array, view: View) -> dict[str, jax.Array]:
-        return {**super().episode(facts, vec, view), "init_tcp": init_tcp(facts)}
-
     def reward(
         self, obs: jax.Array, view: View, episode: Mapping[str, Any], action: jax.Array
     ) -> jax.Array:

@@ -23,7 +23,6 @@ from openral_mjx.scenes.metaworld_mjx.task import (
     View,
     gripper_caging,
     hamacher_product,
-    init_tcp,
     tolerance,
 )
 
@@ -49,9 +48,6 @@ class HandInsert(FreeObjectTask):
 
     def objects(self, view: View) -> tuple[jax.Array, jax.Array]:
         return view.body_pos("obj"), view.body_quat("obj")
-
-    def episode(self, facts: ModelFacts, vec: jax.Array, view: View) -> dict[str, jax.Array]:
-        return {**super().episode(facts, vec, view), "init_tcp": init_tcp(facts)}
 
     def reward(
         self, obs: jax.Array, view: View, episode: Mapping[str, Any], action: jax.Array

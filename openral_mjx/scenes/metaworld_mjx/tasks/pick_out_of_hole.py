@@ -21,11 +21,9 @@ import jax.numpy as jnp
 
 from openral_mjx.scenes.metaworld_mjx.task import (
     FreeObjectTask,
-    ModelFacts,
     View,
     gripper_caging,
     hamacher_product,
-    init_tcp,
     tolerance,
 )
 
@@ -46,9 +44,6 @@ class PickOutOfHole(FreeObjectTask):
 
     def objects(self, view: View) -> tuple[jax.Array, jax.Array]:
         return view.body_pos("obj"), view.body_quat("obj")
-
-    def episode(self, facts: ModelFacts, vec: jax.Array, view: View) -> dict[str, jax.Array]:
-        return {**super().episode(facts, vec, view), "init_tcp": init_tcp(facts)}
 
     def reward(
         self, obs: jax.Array, view: View, episode: Mapping[str, Any], action: jax.Array

@@ -20,11 +20,9 @@ import jax.numpy as jnp
 
 from openral_mjx.scenes.metaworld_mjx.task import (
     FreeObjectTask,
-    ModelFacts,
     View,
     gripper_caging,
     hamacher_product,
-    init_tcp,
     matrix_quat,
     tolerance,
 )
@@ -45,9 +43,6 @@ class PickPlaceWall(FreeObjectTask):
 
     def objects(self, view: View) -> tuple[jax.Array, jax.Array]:
         return view.geom_pos("objGeom"), matrix_quat(view.geom_quat("objGeom"))
-
-    def episode(self, facts: ModelFacts, vec: jax.Array, view: View) -> dict[str, jax.Array]:
-        return {**super().episode(facts, vec, view), "init_tcp": init_tcp(facts)}
 
     def reward(
         self, obs: jax.Array, view: View, episode: Mapping[str, Any], action: jax.Array

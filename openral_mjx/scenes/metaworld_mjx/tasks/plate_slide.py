@@ -26,7 +26,6 @@ from openral_mjx.scenes.metaworld_mjx.task import (
     ModelFacts,
     View,
     hamacher_product,
-    init_tcp,
     matrix_quat,
     tolerance,
 )
@@ -51,9 +50,6 @@ class _PlateSlide(DrawnGoalTask):
 
     has_reward = True
     side_reward: ClassVar[bool] = True  # all but plate-slide-v3
-
-    def episode(self, facts: ModelFacts, vec: jax.Array, view: View) -> dict[str, jax.Array]:
-        return {**super().episode(facts, vec, view), "init_tcp": init_tcp(facts)}
 
     def reward(
         self, obs: jax.Array, view: View, episode: Mapping[str, Any], action: jax.Array

@@ -20,7 +20,6 @@ from openral_mjx.scenes.metaworld_mjx.task import (
     at_rest_height,
     gripper_caging,
     hamacher_product,
-    init_tcp,
     long_tail_tolerance,
     matrix_quat,
     tolerance,
@@ -78,9 +77,6 @@ class Push(_Puck):
     def target(self, facts: ModelFacts, vec: jax.Array, view: View) -> jax.Array:
         return at_rest_height(facts, vec[3:5], self.rest_key)
 
-    def episode(self, facts: ModelFacts, vec: jax.Array, view: View) -> dict[str, jax.Array]:
-        return {**super().episode(facts, vec, view), "init_tcp": init_tcp(facts)}
-
     def reward(
         self, obs: jax.Array, view: View, episode: Mapping[str, Any], action: jax.Array
     ) -> jax.Array:
@@ -103,9 +99,6 @@ class PickPlace(_Puck):
     success_radius = 0.07
     bodies = ("obj", "leftpad", "rightpad")
     has_reward = True
-
-    def episode(self, facts: ModelFacts, vec: jax.Array, view: View) -> dict[str, jax.Array]:
-        return {**super().episode(facts, vec, view), "init_tcp": init_tcp(facts)}
 
     def _caging(
         self, view: View, episode: Mapping[str, Any], action: jax.Array, obj: jax.Array

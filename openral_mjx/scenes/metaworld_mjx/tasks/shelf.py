@@ -23,7 +23,6 @@ from openral_mjx.scenes.metaworld_mjx.task import (
     at_rest_height,
     gripper_caging,
     hamacher_product,
-    init_tcp,
     matrix_quat,
     tolerance,
 )
@@ -63,9 +62,6 @@ class ShelfPlace(FreeObjectTask):
 
     def objects(self, view: View) -> tuple[jax.Array, jax.Array]:
         return view.body_pos("obj"), matrix_quat(view.geom_quat("objGeom"))
-
-    def episode(self, facts: ModelFacts, vec: jax.Array, view: View) -> dict[str, jax.Array]:
-        return {**super().episode(facts, vec, view), "init_tcp": init_tcp(facts)}
 
     def reward(
         self, obs: jax.Array, view: View, episode: Mapping[str, Any], action: jax.Array

@@ -48,11 +48,11 @@ def capped_contact_groups(m: mujoco.MjModel) -> list[tuple[int, int]]:
     ``max_contact_points`` truncates, in the order MJX lays them out (by condim)."""
     from mujoco.mjx._src import collision_driver
 
-    cap = numeric(m, _CAP)
-    if cap is None or cap < 0:
-        return []
     i = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_NUMERIC, _CAP)
-    adr = m.numeric_adr[i]
+    adr = m.numeric_adr[i] if i >= 0 else -1
+    cap = int(m.numeric_data[adr]) if i >= 0 else -1
+    if cap < 0:
+        return []
     m.numeric_data[adr] = -1  # the uncapped layout, read through MJX's own function
     try:
         full = collision_driver.make_condim(m)

@@ -96,12 +96,10 @@ def for_mjx(spec: mujoco.MjSpec) -> dict[str, int]:
     }
 
 
-def hand_reset_state(
-    m: mujoco.MjModel, hand_init_pos: tuple[float, ...], forward: bool = True
-) -> mujoco.MjData:
-    """MetaWorld's ``_reset_hand`` from the model's default state, in MuJoCo C (float64);
-    without `forward`, the poses as its last ``mj_step`` leaves them (what MetaWorld reads as
-    ``init_tcp``)."""
+def hand_reset_state(m: mujoco.MjModel, hand_init_pos: tuple[float, ...]) -> mujoco.MjData:
+    """MetaWorld's ``_reset_hand`` from the model's default state, in MuJoCo C (float64),
+    with the poses as its last ``mj_step`` leaves them (what MetaWorld reads as ``init_tcp``;
+    no forward pass after it)."""
     d = mujoco.MjData(m)
     mujoco.mj_resetData(m, d)
     mocap = m.body_mocapid[m.body("mocap").id]
@@ -110,8 +108,6 @@ def hand_reset_state(
         d.mocap_quat[mocap] = mw.MOCAP_QUAT
         d.ctrl[:] = (-1.0, 1.0)
         mujoco.mj_step(m, d, nstep=mw.FRAME_SKIP)
-    if forward:
-        mujoco.mj_forward(m, d)
     return d
 
 
@@ -119,7 +115,9 @@ def model_facts(m: mujoco.MjModel, task: mw.MirrorTask) -> tuple[mw.ModelFacts, 
     """The task's `ModelFacts` for compiled model `m`, and the hand-reset MjData they were
     read from."""
     d = hand_reset_state(m, task.hand_init_pos)
-    rest: dict[str, np.ndarray] = {}
+    ends = [d.site_xpos[m.site(n).id] for n in ("rightEndEffector", "leftEndEffector")]
+    rest: dict[str, np.ndarray] = {"init_tcp": (ends[0] + ends[1]) / 2.0}  # before a forward
+    mujoco.mj_forward(m, d)  # the other positions: the state the hand reset ends in
     for i in range(m.nbody):
         rest[f"body:{m.body(i).name}"] = d.xpos[i].copy()
     for i in range(m.nsite):
@@ -127,9 +125,6 @@ def model_facts(m: mujoco.MjModel, task: mw.MirrorTask) -> tuple[mw.ModelFacts, 
     for i in range(m.ngeom):
         if m.geom(i).name:
             rest[f"geom:{m.geom(i).name}"] = d.geom_xpos[i].copy()
-    stale = hand_reset_state(m, task.hand_init_pos, forward=False)
-    ends = [stale.site_xpos[m.site(n).id] for n in ("rightEndEffector", "leftEndEffector")]
-    rest["init_tcp"] = (ends[0] + ends[1]) / 2.0  # MetaWorld's, read before a forward pass
     joints = [m.joint(i) for i in range(m.njnt)]
     facts = mw.ModelFacts(
         qpos_adr={j.name: int(j.qposadr[0]) for j in joints},
@@ -293,6 +288,8 @@ class MetaWorldMjx(Scene):
         physics = physics.replace(quantities=q.replace(ok=q.ok & reset_ok))
         view = self._view(physics)
         episode = t.episode(self.facts, vec, view)
+        if not t.hand_reset_per_episode:  # else MetaWorld's comes from this episode's reset
+            episode = {**episode, "init_tcp": mw.init_tcp(self.facts)}
         curr = self._current(view)
         if t.observes_before_place:  # the hand reset's state, with the moved bodies in place
             before = self.backend.init(hand_qpos, hand_qvel, fields=fields)

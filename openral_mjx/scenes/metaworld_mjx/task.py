@@ -235,11 +235,6 @@ def tolerance(
     return jnp.where(inside, 1.0, jnp.where(margin > 0, tail, 0.0))
 
 
-def long_tail_tolerance(x: jax.Array, upper: float, margin: jax.Array) -> jax.Array:
-    """`tolerance` with MetaWorld's ``long_tail`` sigmoid."""
-    return tolerance(x, upper, margin, "long_tail")
-
-
 def hamacher_product(a: jax.Array, b: jax.Array) -> jax.Array:
     """MetaWorld's ``reward_utils.hamacher_product``: a b / (a + b - a b), 0 where both are 0."""
     den = a + b - a * b
@@ -294,7 +289,8 @@ def gripper_caging(
 
 def init_tcp(facts: ModelFacts) -> jax.Array:
     """MetaWorld's ``init_tcp``: the tcp centre its hand reset ends in, as its last physics
-    step leaves the poses (for a task whose hand reset is the same every episode)."""
+    step leaves the poses (for a task whose hand reset is the same every episode: the scene
+    puts it in every such episode as ``episode["init_tcp"]``)."""
     return jnp.asarray(facts.rest["init_tcp"], jnp.float32)
 
 
@@ -319,8 +315,8 @@ class MovedBodyTask(MirrorTask):
 class DrawnGoalTask(MirrorTask):
     """A task whose random vector is (object xyz, goal xyz). The episode's ``target_pos`` is
     `target` (default: the drawn goal), its ``obj_init_pos`` `obj_init` (default: the drawn
-    object position), its ``init_tcp`` MetaWorld's (`init_tcp`); success: the observed object
-    (``obs[4:7]``) within `success_radius` of the goal."""
+    object position); success: the observed object (``obs[4:7]``) within `success_radius` of
+    the goal."""
 
     success_radius: ClassVar[float]
 
@@ -335,13 +331,10 @@ class DrawnGoalTask(MirrorTask):
         return vec[3:6]
 
     def episode(self, facts: ModelFacts, vec: jax.Array, view: View) -> dict[str, jax.Array]:
-        episode = {
+        return {
             "target_pos": self.target(facts, vec, view),
             "obj_init_pos": self.obj_init(facts, vec),
         }
-        if not self.hand_reset_per_episode:  # else MetaWorld's comes from this episode's reset
-            episode["init_tcp"] = init_tcp(facts)
-        return episode
 
     def success(self, obs: jax.Array, view: View, episode: Mapping[str, Any]) -> jax.Array:
         return jnp.linalg.norm(obs[4:7] - episode["target_pos"]) <= self.success_radius

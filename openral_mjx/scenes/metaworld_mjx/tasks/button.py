@@ -25,11 +25,32 @@ from openral_mjx.scenes.metaworld_mjx.task import (
     ModelFacts,
     View,
     hamacher_product,
-    init_tcp,
     tolerance,
 )
 
 BUTTON_QPOS = 9  # the button's slide joint (MetaWorld's `_set_obj_xyz` writes qpos[9]/qvel[9])
+
+
+def press_terms(
+    obs: jax.Array, view: View, episode: Mapping[str, Any], axis: int, near_radius: float
+) -> tuple[jax.Array, jax.Array, jax.Array]:
+    """(tcp to button, tcp near the button, button pressed) of MetaWorld's button rewards: the
+    button is ``obs[4:7]``, pressed along `axis` towards ``episode["target_pos"]`` within
+    5 mm, its margin ``episode["obj_to_target_init"]``."""
+    obj = obs[4:7]
+    tcp_to_obj = jnp.linalg.norm(obj - view.tcp_center)
+    near = tolerance(tcp_to_obj, near_radius, jnp.linalg.norm(obj - episode["init_tcp"]))
+    to_target = jnp.abs(episode["target_pos"][axis] - obj[axis])
+    pressed = tolerance(to_target, 0.005, episode["obj_to_target_init"])
+    return tcp_to_obj, near, pressed
+
+
+def front_press_reward(obs: jax.Array, view: View, episode: Mapping[str, Any]) -> jax.Array:
+    """MetaWorld's v2 reward of button-press-v3 (coffee-button-v3 has the same): the open
+    gripper near the button (2), and the button pressed along y once within 5 cm (8)."""
+    tcp_to_obj, near, pressed = press_terms(obs, view, episode, axis=1, near_radius=0.05)
+    reward = 2.0 * hamacher_product(jnp.maximum(obs[3], 0.0), near)
+    return reward + jnp.where(tcp_to_obj <= 0.05, 8.0 * pressed, 0.0)
 
 
 class _Button(MirrorTask):
@@ -43,7 +64,6 @@ class _Button(MirrorTask):
     axis: ClassVar[int]  # pressing axis: 1 (y) front-facing, 2 (z) top-down
     tolerance: ClassVar[float]
     reset_joint: ClassVar[bool]
-    near_radius: ClassVar[float] = 0.01  # the reward's "tcp near the button" bound
 
     def place(
         self, facts: ModelFacts, vec: jax.Array, qpos: jax.Array, qvel: jax.Array
@@ -59,19 +79,13 @@ class _Button(MirrorTask):
             "target_pos": hole,
             "obj_init_pos": vec,
             "obj_to_target_init": jnp.abs(hole[a] - view.site_pos("buttonStart")[a]),
-            "init_tcp": init_tcp(facts),
         }
 
     def _terms(
         self, obs: jax.Array, view: View, episode: Mapping[str, Any]
     ) -> tuple[jax.Array, jax.Array, jax.Array]:
-        """(tcp to button, tcp near the button, button pressed) of MetaWorld's rewards."""
-        obj = obs[4:7]
-        tcp_to_obj = jnp.linalg.norm(obj - view.tcp_center)
-        near = tolerance(tcp_to_obj, self.near_radius, jnp.linalg.norm(obj - episode["init_tcp"]))
-        to_target = jnp.abs(episode["target_pos"][self.axis] - obj[self.axis])
-        pressed = tolerance(to_target, 0.005, episode["obj_to_target_init"])
-        return tcp_to_obj, near, pressed
+        """`press_terms` along this task's axis, near within 1 cm."""
+        return press_terms(obs, view, episode, self.axis, near_radius=0.01)
 
     def objects(self, view: View) -> tuple[jax.Array, jax.Array]:
         offset = jnp.zeros(3).at[self.axis].set(-0.193 if self.axis == 1 else 0.193)
@@ -88,14 +102,11 @@ class ButtonPress(_Button):
     reset_low = (-0.1, 0.85, 0.115)
     reset_high = (0.1, 0.9, 0.115)
     axis, tolerance, reset_joint = 1, 0.02, True
-    near_radius = 0.05
 
     def reward(
         self, obs: jax.Array, view: View, episode: Mapping[str, Any], action: jax.Array
     ) -> jax.Array:
-        tcp_to_obj, near, pressed = self._terms(obs, view, episode)
-        reward = 2.0 * hamacher_product(jnp.maximum(obs[3], 0.0), near)
-        return reward + jnp.where(tcp_to_obj <= 0.05, 8.0 * pressed, 0.0)
+        return front_press_reward(obs, view, episode)
 
 
 class ButtonPressWall(_Button):

@@ -29,10 +29,10 @@ from openral_mjx.scenes.metaworld_mjx.task import (
     View,
     gripper_caging,
     hamacher_product,
-    init_tcp,
     matrix_quat,
     tolerance,
 )
+from openral_mjx.scenes.metaworld_mjx.tasks.button import front_press_reward
 
 MUG_QPOS = 0  # the mug's free joint position (qpos[0:3])
 ZEROED_QVEL = slice(9, 15)  # what the coffee tasks' `_set_obj_xyz` zeroes
@@ -65,7 +65,7 @@ class CoffeeButton(MirrorTask):
         return {
             "target_pos": vec + jnp.array([0.0, -0.22 + 0.03, 0.3]),
             "obj_init_pos": vec,
-            "init_tcp": init_tcp(facts),
+            "obj_to_target_init": jnp.asarray(0.03, jnp.float32),  # MetaWorld's `max_dist`
         }
 
     def objects(self, view: View) -> tuple[jax.Array, jax.Array]:
@@ -79,14 +79,9 @@ class CoffeeButton(MirrorTask):
     def reward(
         self, obs: jax.Array, view: View, episode: Mapping[str, Any], action: jax.Array
     ) -> jax.Array:
-        """MetaWorld's v2: button-press-v3's, with the press measured against the button's
-        0.03 m travel."""
-        obj = obs[4:7]
-        tcp_to_obj = jnp.linalg.norm(obj - view.tcp_center)
-        near = tolerance(tcp_to_obj, 0.05, jnp.linalg.norm(obj - episode["init_tcp"]))
-        pressed = tolerance(jnp.abs(episode["target_pos"][1] - obj[1]), 0.005, 0.03)
-        reward = 2.0 * hamacher_product(jnp.maximum(obs[3], 0.0), near)
-        return reward + jnp.where(tcp_to_obj <= 0.05, 8.0 * pressed, 0.0)
+        """MetaWorld's v2: button-press-v3's, the press measured against the button's 0.03 m
+        travel (``obj_to_target_init``)."""
+        return front_press_reward(obs, view, episode)
 
 
 class _Mug(FreeObjectTask):

@@ -26,7 +26,6 @@ from openral_mjx.scenes.metaworld_mjx.task import (
     ModelFacts,
     View,
     hamacher_product,
-    init_tcp,
     tolerance,
 )
 
@@ -52,7 +51,6 @@ class _Drawer(MirrorTask):
         return {
             "target_pos": vec + jnp.asarray(self.target_offset, vec.dtype),
             "obj_init_pos": self._handle(view),  # the handle where the reset leaves it
-            "init_tcp": init_tcp(facts),
         }
 
     def _handle(self, view: View) -> jax.Array:

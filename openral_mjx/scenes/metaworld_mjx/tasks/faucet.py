@@ -23,7 +23,6 @@ from openral_mjx.scenes.metaworld_mjx.task import (
     ModelFacts,
     MovedBodyTask,
     View,
-    init_tcp,
     tolerance,
 )
 
@@ -45,7 +44,7 @@ class _Faucet(MovedBodyTask):
 
     def episode(self, facts: ModelFacts, vec: jax.Array, view: View) -> dict[str, jax.Array]:
         offset = jnp.array([self.side * HANDLE_LENGTH, 0.0, 0.125], vec.dtype)
-        return {"target_pos": vec + offset, "obj_init_pos": vec, "init_tcp": init_tcp(facts)}
+        return {"target_pos": vec + offset, "obj_init_pos": vec}
 
     def objects(self, view: View) -> tuple[jax.Array, jax.Array]:
         handle = view.site_pos(self.handle_site) + jnp.array([0.0, 0.0, -0.01], jnp.float32)

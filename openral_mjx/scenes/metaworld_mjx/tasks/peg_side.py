@@ -28,7 +28,6 @@ from openral_mjx.scenes.metaworld_mjx.task import (
     View,
     gripper_caging,
     hamacher_product,
-    init_tcp,
     matrix_quat,
     tolerance,
 )
@@ -83,7 +82,6 @@ class PegInsertSide(MirrorTask):
             "obj_init_pos": vec[:3],
             # read after the hand reset, before the peg is placed
             "peg_head_pos_init": jnp.asarray(facts.rest["site:pegHead"], jnp.float32),
-            "init_tcp": init_tcp(facts),
         }
 
     def objects(self, view: View) -> tuple[jax.Array, jax.Array]:

@@ -20,7 +20,6 @@ from openral_mjx.scenes.metaworld_mjx.task import (
     at_rest_height,
     gripper_caging,
     hamacher_product,
-    long_tail_tolerance,
     matrix_quat,
     tolerance,
 )
@@ -54,7 +53,7 @@ class Reach(_Puck):
     ) -> jax.Array:
         target = episode["target_pos"]
         margin = jnp.linalg.norm(jnp.asarray(self.hand_init_pos) - target)
-        in_place = long_tail_tolerance(jnp.linalg.norm(view.tcp_center - target), 0.05, margin)
+        in_place = tolerance(jnp.linalg.norm(view.tcp_center - target), 0.05, margin)
         return 10.0 * in_place
 
 

@@ -32,7 +32,6 @@ from openral_mjx.scenes.metaworld_mjx.task import (
     ModelFacts,
     View,
     hamacher_product,
-    init_tcp,
     tolerance,
 )
 
@@ -65,7 +64,6 @@ class _Window(MirrorTask):
             # MetaWorld's `window_handle_pos_init`: the handle before the slide is written (at
             # the hand reset's 0), + 0.2 m in x for close: where the slide, along x, puts it
             "handle_init": view.site_pos(self.handle),
-            "init_tcp": init_tcp(facts),
         }
 
     def objects(self, view: View) -> tuple[jax.Array, jax.Array]:

@@ -1,6 +1,6 @@
 """Warp-rendered depth against the ray-cast depth camera on the same states, on this device.
 
-`tests/test_camera_render.py` checks this in MuJoCo-Warp's CPU mode; this script repeats it
+`tests/physics/test_camera_render.py` checks this in MuJoCo-Warp's CPU mode; this script repeats it
 where the renderer runs on a GPU: so101_box on `warp` with the overhead and wrist depth
 cameras (rendered by MuJoCo-Warp's batch renderer), N envs reset and stepped with random
 actions, every pixel compared with `raycast.depth_image` cast from the same states' body

@@ -112,7 +112,7 @@ ts = s('metaworld_mjx', '${SUITE:-mt50}'); print(*sorted(ts, key=lambda t: not T
     done
     wait; ls "$d"/*.json | wc -l ;;
   rand-test)   # issue 22: per-env physics fields on mjx and warp against MuJoCo C (GPU)
-    python3 -m pytest -q -p no:cacheprovider tests/test_per_env_fields.py -m "slow or not slow" \
+    python3 -m pytest -q -p no:cacheprovider tests/physics/test_per_env_fields.py -m "slow or not slow" \
       -k physics 2>&1 | tail -3 ;;
   rand-cost)   # issue 22: randomisation's cost on tabletop_push, nominal vs 9 factors, 4,096 envs
     R="friction=0.3:1.2 mass=0.5x:2x kp=0.7x:1.3x damping=0.5x:2x armature=0.5x:2x delay=0:2"

@@ -1,4 +1,4 @@
-"""Module-level guard for tests that need worker environments (`openral_mjx.host.envs`)."""
+"""Guard for tests that need worker environments (`openral_mjx.host.envs`)."""
 
 from __future__ import annotations
 
@@ -9,10 +9,10 @@ import pytest
 from openral_mjx.host import envs
 
 
-def require_worker_envs(*names: str) -> None:
-    """Skip the calling test module unless worker environments `names` exist. On CI, which
-    creates them (`.ci/run`), a missing one is an error, so a broken creation cannot turn the
-    module's tests into silent skips."""
+def require_worker_envs(*names: str, module: bool = True) -> None:
+    """Skip the calling test module (or, with `module=False`, the calling test) unless worker
+    environments `names` exist. On CI, which creates them (`.ci/run`), a missing one is an
+    error, so a broken creation cannot turn the tests into silent skips."""
     for name in names:
         if envs.is_ready(name):
             continue
@@ -21,5 +21,6 @@ def require_worker_envs(*names: str) -> None:
                 f"CI must create the worker environment: {envs.create_command(name)}"
             )
         pytest.skip(
-            f"worker environment not created ({envs.create_command(name)})", allow_module_level=True
+            f"worker environment not created ({envs.create_command(name)})",
+            allow_module_level=module,
         )

@@ -28,14 +28,16 @@ from openral_mjx.scenes.tabletop_push import TabletopPush, TabletopPushOptions
 
 @dataclasses.dataclass(frozen=True)
 class SceneEntry:
-    """How to build a scene: its options class, its constructor, a fixed robot if any, and
-    the physics backends it runs on (None: every MuJoCo backend; host scenes: `host`)."""
+    """How to build a scene: its options class, its constructor, a fixed robot if any, the
+    physics backends it runs on (None: every MuJoCo backend; host scenes: `host`), and the
+    worker environment (`openral_mjx.host.envs`) its simulator or assets come from, if any."""
 
     options_cls: type
     build: Callable[..., Scene]
     fixed_robot: str | None = None
     backends: tuple[str, ...] | None = None
     suites: Callable[[str], list[str]] | None = None  # suite name -> its tasks
+    worker_env: str | None = None
 
 
 SCENES: Registry[SceneEntry] = Registry("scene")
@@ -55,22 +57,55 @@ def check_robot(name: str, robot: str | None, robot_mjcf: str | None = None) -> 
 
 SCENES.register("point_reach")(SceneEntry(PointReachOptions, point_reach, backends=("host",)))
 SCENES.register("libero")(
-    SceneEntry(LiberoOptions, libero, "panda", backends=("host",), suites=suite_tasks)
+    SceneEntry(
+        LiberoOptions,
+        libero,
+        "panda",
+        backends=("host",),
+        suites=suite_tasks,
+        worker_env="lerobot-libero",
+    )
 )
-SCENES.register("robosuite")(SceneEntry(RobosuiteOptions, robosuite, "panda", backends=("host",)))
+SCENES.register("robosuite")(
+    SceneEntry(
+        RobosuiteOptions, robosuite, "panda", backends=("host",), worker_env="lerobot-libero"
+    )
+)
 SCENES.register("metaworld")(
     SceneEntry(
-        MetaWorldOptions, metaworld, "sawyer", backends=("host",), suites=metaworld_suite_tasks
+        MetaWorldOptions,
+        metaworld,
+        "sawyer",
+        backends=("host",),
+        suites=metaworld_suite_tasks,
+        worker_env="metaworld",
     )
 )
 SCENES.register("metaworld_mjx")(
-    SceneEntry(MetaWorldMjxOptions, MetaWorldMjx, "sawyer", suites=metaworld_suite_tasks)
+    SceneEntry(
+        MetaWorldMjxOptions,
+        MetaWorldMjx,
+        "sawyer",
+        suites=metaworld_suite_tasks,
+        worker_env="metaworld",  # the mirror compiles MetaWorld's own model files
+    )
 )
-SCENES.register("pusht")(SceneEntry(PushTOptions, pusht, "pusht_agent", backends=("host",)))
+SCENES.register("pusht")(
+    SceneEntry(PushTOptions, pusht, "pusht_agent", backends=("host",), worker_env="gym-envs")
+)
 SCENES.register("aloha")(
-    SceneEntry(AlohaOptions, aloha, "aloha", backends=("host",), suites=aloha_suite_tasks)
+    SceneEntry(
+        AlohaOptions,
+        aloha,
+        "aloha",
+        backends=("host",),
+        suites=aloha_suite_tasks,
+        worker_env="gym-envs",
+    )
 )
-SCENES.register("maniskill")(SceneEntry(ManiSkillOptions, maniskill, "panda", backends=("host",)))
+SCENES.register("maniskill")(
+    SceneEntry(ManiSkillOptions, maniskill, "panda", backends=("host",), worker_env="maniskill")
+)
 
 
 def scene_suite(name: str, suite: str) -> list[str]:

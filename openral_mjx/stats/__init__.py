@@ -3,7 +3,7 @@
 (`sequential`) and the success breakdown by episode factor (`breakdown`).
 
 A new statistic goes in the module of its kind, with an exact or simulated oracle in
-`tests/test_stats.py`; what users call is re-exported here.
+`tests/stats/test_stats.py`; what users call is re-exported here.
 """
 
 from openral_mjx.stats.breakdown import breakdown, format_breakdown

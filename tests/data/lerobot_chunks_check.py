@@ -1,5 +1,5 @@
-"""Run in the lerobot environment by tests/test_lerobot_chunks.py: `LerobotRunner`'s per-env
-action chunks against lerobot's own `select_action`.
+"""Run in the lerobot environment by tests/policies/test_lerobot_chunks.py: `LerobotRunner`'s
+per-env action chunks against lerobot's own `select_action`.
 
 1. Every env starting together: the runner's actions are `select_action`'s on the batch.
 2. Envs starting their episodes at different steps (one of them twice), as under continuous

@@ -1,4 +1,5 @@
-"""Torch policies for tests/test_torch_policy.py (`torch:tests/data/torch_policies.py:NAME`).
+"""Torch policies for tests/policies/test_torch_policy.py
+(`torch:tests/data/torch_policies.py:NAME`).
 
 Each factory builds a small module from the observation spec and action size the evaluator
 passes (by keyword, whichever its signature names); `tabletop_push` observes one flat vector,

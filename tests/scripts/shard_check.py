@@ -1,5 +1,5 @@
 """Run in a fresh process with XLA_FLAGS=--xla_force_host_platform_device_count=4 (see
-tests/test_sharding.py): shard envs over 4 CPU devices and compare with one device."""
+tests/runner/test_sharding.py): shard envs over 4 CPU devices and compare with one device."""
 
 import json
 import sys

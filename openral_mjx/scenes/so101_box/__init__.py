@@ -40,7 +40,7 @@ Contact model: the tube's contacts use `contact_timeconst` (5 ms); with the bloc
 `block_solimp` (MuJoCo's default); with the fingers, the stiffer `grip_solimp` (the 2.94 N m jaw
 servo squeezes the 30 g tube hard: each finger sinks 1.3 mm into it at the default impedance,
 0.24 mm at 0.99). 87 contact slots for MJX, all between
-primitives (planes, capsules, boxes, cylinders). Tested fit (tests/test_so101_box_fit.py):
+primitives (planes, capsules, boxes, cylinders). Tested fit (tests/scenes/test_so101_box_fit.py):
 dropped at rest onto the hole with its axis vertical, the tube falls through with its axis
 0.4 mm off centre and stays on the rim at 0.7 mm and 1 mm, on MuJoCo C and on MJX alike
 (same resting heights within 0.1 mm): the effective radial clearance is in (0.4, 0.7) mm,

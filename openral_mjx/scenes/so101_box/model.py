@@ -52,7 +52,7 @@ def _camera(
     cam.focal_pixel = list(focal)
     # MuJoCo's principal point is the image centre's offset from the optical axis: the axis
     # crosses the image at (W/2 - px, H/2 - py), as its renderer draws it (checked against
-    # MuJoCo's OpenGL renderer in tests/test_depth_camera.py).
+    # MuJoCo's OpenGL renderer in tests/physics/test_camera_render.py).
     cam.principal_pixel = [resolution[0] / 2 - principal[0], resolution[1] / 2 - principal[1]]
 
 

@@ -22,6 +22,7 @@ from openral_mjx.scenes.metaworld_mjx.tasks import TASKS
 
 ENV = "metaworld"
 require_worker_envs(ENV)
+pytestmark = pytest.mark.worker
 
 # One task per kind of reset: a free object (push), a fixed body moved per episode with a
 # target read from the placed model (button-press-topdown, if ported), the hand alone (reach).
@@ -201,7 +202,7 @@ def test_mjx_model_observes_metaworlds_frames():
 
 def test_mjx_copy_caps_contact_slots_and_the_backend_checks_the_cap():
     """box-close's mjx copy keeps 64 contacts per condim of MJX's 780 slots, and the `mjx`
-    backend watches each capped group (tests/test_mjx_contact_cap.py: what the check does)."""
+    backend watches each capped group (tests/physics/test_mjx_backend.py: what the check does)."""
     from mujoco.mjx._src import collision_driver
 
     from openral_mjx.physics.mjx_backend import capped_contact_groups

@@ -22,8 +22,9 @@ from openral_mjx.runner import resolve_batching, run_seeds
 
 ENV = "lerobot-libero"
 require_worker_envs(ENV)
+pytestmark = pytest.mark.worker
 
-CHECK = Path(__file__).parent / "data" / "lerobot_chunks_check.py"
+CHECK = Path(__file__).parents[1] / "data" / "lerobot_chunks_check.py"
 
 
 def _lerobot(args: list[str]) -> subprocess.CompletedProcess:

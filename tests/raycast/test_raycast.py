@@ -29,7 +29,7 @@ from openral_mjx.raycast.geoms import subtree
 
 TOL = 1e-4  # metres, float32 casts against float64 mj_multiRay
 N_POSES = 6
-MOBILE = Path(__file__).parent / "data" / "mobile_base.xml"
+MOBILE = Path(__file__).parents[1] / "data" / "mobile_base.xml"
 
 SHAPES = """
 <mujoco>

@@ -26,6 +26,7 @@ al = importlib.import_module("openral_mjx.scenes.aloha")
 
 ENV = "gym-envs"
 require_worker_envs(ENV)
+pytestmark = pytest.mark.worker
 
 SMALL = {"image_height": 48, "image_width": 64}
 GL = {"MUJOCO_GL": "egl", "PYOPENGL_PLATFORM": "egl"}

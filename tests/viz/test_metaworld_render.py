@@ -19,6 +19,7 @@ from openral_mjx.viz import metaworld_render as render
 from openral_mjx.viz.gl import GLUnavailable, gl_backend
 
 require_worker_envs("metaworld")
+pytestmark = pytest.mark.worker
 
 CAMERAS = "topview, corner, corner2, corner3, corner4, behindGripper, gripperPOV"
 # `corner` at MetaWorld's 480 x 480: 86.1% of pixels within 8/255 of MuJoCo's render on both

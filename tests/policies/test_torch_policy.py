@@ -23,7 +23,7 @@ from openral_mjx.policies import Policy, make_policy  # noqa: E402
 from openral_mjx.policies.torch_bridge import TorchBridge, bridge_policy  # noqa: E402
 from openral_mjx.runner import run_seeds  # noqa: E402
 
-FILE = Path(__file__).parent / "data" / "torch_policies.py"
+FILE = Path(__file__).parents[1] / "data" / "torch_policies.py"
 
 
 def spec(name: str) -> str:

@@ -24,6 +24,7 @@ pt = importlib.import_module("openral_mjx.scenes.pusht")
 
 ENV = "gym-envs"
 require_worker_envs(ENV)
+pytestmark = pytest.mark.worker
 
 OBS = {"pixels": ((96, 96, 3), "uint8"), "agent_pos": ((2,), "float32")}
 

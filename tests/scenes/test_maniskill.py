@@ -24,6 +24,7 @@ ms = importlib.import_module("openral_mjx.scenes.maniskill")
 
 ENV = "maniskill"
 require_worker_envs(ENV)
+pytestmark = pytest.mark.worker
 
 
 @pytest.fixture(scope="module")

@@ -1,5 +1,5 @@
 """lerobot policies on PushT and ALOHA: ACT and Diffusion saved with random weights as trained
-ones are (offline, as tests/test_worker_env_scenes.py does) run on the scenes unchanged, by
+ones are (offline, as tests/host/test_worker_env_scenes.py does) run on the scenes unchanged, by
 lerobot's feature names. Needs the `gym-envs` worker environment (the scenes) and the
 `lerobot-libero` one (lerobot's policy server); CI creates both, elsewhere these tests are
 skipped until `python -m openral_mjx.host.envs create ...` has run."""
@@ -15,6 +15,7 @@ from openral_mjx.host import envs
 from openral_mjx.host.pool import _shim_dir
 
 require_worker_envs("gym-envs", "lerobot-libero")
+pytestmark = pytest.mark.worker
 
 # name -> (kind, input features, action size)
 POLICIES = {

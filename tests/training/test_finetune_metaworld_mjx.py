@@ -24,6 +24,7 @@ from openral_mjx.scenes.metaworld_mjx.tasks import TASKS, rewarded_tasks
 
 ENV = "metaworld"
 require_worker_envs(ENV)
+pytestmark = pytest.mark.worker
 
 SCENE = ["--scene", "metaworld_mjx", "--backend", "c", "--threads", "2", "--no-compile-cache"]
 

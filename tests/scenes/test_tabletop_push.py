@@ -104,7 +104,7 @@ def test_config_yaml_matches_defaults():
     from openral_mjx.core.options import from_mapping, load_yaml
     from openral_mjx.scenes import TabletopPushOptions
 
-    path = Path(__file__).parent.parent / "configs" / "tabletop_push.yaml"
+    path = Path(__file__).parents[2] / "configs" / "tabletop_push.yaml"
     assert from_mapping(TabletopPushOptions, load_yaml(path)) == TabletopPushOptions()
 
 

@@ -2,7 +2,7 @@
 episodes. Runs where lerobot imports in this environment (Python 3.12 with lerobot 0.6: the
 GPU machine) and a server interpreter is at hand (the `lerobot-libero` worker environment, or
 `OPENRAL_MJX_PYTHON_LEROBOT_LIBERO`); skipped elsewhere (CI's Python 3.11 cannot hold lerobot
-0.6, so CI tests the server path: tests/test_lerobot_chunks.py)."""
+0.6, so CI tests the server path: tests/policies/test_lerobot_chunks.py)."""
 
 import importlib.util
 import os

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-SCRIPT = Path(__file__).parent / "scripts" / "shard_check.py"
+SCRIPT = Path(__file__).parents[1] / "scripts" / "shard_check.py"
 
 
 def run_on_cpu_devices(n_devices: int, *argv: object) -> subprocess.CompletedProcess:

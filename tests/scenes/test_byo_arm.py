@@ -27,9 +27,9 @@ from openral_mjx.policies import make_policy
 from openral_mjx.scenes import TabletopPushOptions, make_scene, scene_options
 from openral_mjx.scenes.tabletop_push.arm import prepare, span, workspace
 
-ARMS = Path(__file__).parent / "data" / "arms"
+ARMS = Path(__file__).parents[1] / "data" / "arms"
 SITES = {"small6": "tool0", "industrial6": "attachment_site", "seven": "tcp"}
-MOBILE = Path(__file__).parent / "data" / "mobile_base.xml"
+MOBILE = Path(__file__).parents[1] / "data" / "mobile_base.xml"
 
 
 def arm(name: str, **extra: object) -> dict[str, object]:

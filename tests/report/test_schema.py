@@ -101,7 +101,7 @@ def test_loading_is_strict(report, tmp_path, change, needle):
     assert needle in str(exc.value)
 
 
-SAVED_V2 = Path(__file__).parents[1] / "benchmarks/2026-11-23-ci2core/rays/box_c_nodepth.json"
+SAVED_V2 = Path(__file__).parents[2] / "benchmarks/2026-11-23-ci2core/rays/box_c_nodepth.json"
 
 
 def test_saved_schema_2_report_still_loads():

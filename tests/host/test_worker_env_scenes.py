@@ -19,6 +19,7 @@ from openral_mjx.report import load_report
 
 ENV = "lerobot-libero"
 require_worker_envs(ENV)
+pytestmark = pytest.mark.worker
 
 IMAGE = 64  # small renders keep LIBERO fast on a CPU
 LIBERO_OBS = {

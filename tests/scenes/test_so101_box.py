@@ -226,7 +226,7 @@ def test_fixed_robot():
 
 
 def test_config_yaml_matches_defaults():
-    path = Path(__file__).parent.parent / "configs" / "so101_box.yaml"
+    path = Path(__file__).parents[2] / "configs" / "so101_box.yaml"
     assert from_mapping(So101BoxOptions, load_yaml(path)) == So101BoxOptions()
 
 

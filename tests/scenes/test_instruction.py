@@ -117,7 +117,7 @@ def test_libero_text_is_libero_tasks_language():
         "print(json.dumps({s: [d[s]().get_task(i).language for i in range(d[s]().n_tasks)] "
         f"for s in {list(LIBERO)!r}}}))"
     )
-    env = {**os.environ, "PYTHONPATH": str(Path(__file__).parents[1])}
+    env = {**os.environ, "PYTHONPATH": str(Path(__file__).parents[2])}
     proc = subprocess.run([str(python), "-c", script], env=env, capture_output=True, text=True)
     assert proc.returncode == 0, proc.stderr
     assert json.loads(proc.stdout.strip().splitlines()[-1]) == {
@@ -125,7 +125,7 @@ def test_libero_text_is_libero_tasks_language():
     }
 
 
-SAVED = Path(__file__).parents[1] / "benchmarks/2026-11-23-ci2core/rays/box_c_nodepth.json"
+SAVED = Path(__file__).parents[2] / "benchmarks/2026-11-23-ci2core/rays/box_c_nodepth.json"
 
 
 def test_reports_before_5_read_without_it_and_suites_keep_each_tasks():

@@ -30,6 +30,7 @@ mw = importlib.import_module("openral_mjx.scenes.metaworld")
 
 ENV = "metaworld"
 require_worker_envs(ENV)
+pytestmark = pytest.mark.worker
 
 OBS = {"obs": ((39,), "float32"), "agent_pos": ((4,), "float32")}
 

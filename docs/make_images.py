@@ -1,5 +1,6 @@
-"""Regenerate the README's images from the quick-start run (1,024 seeds, scripted expert, `c`):
-the success-by-factor plot and a still from the video of the first failed episode.
+"""Regenerate the images of the README and docs from the quick-start run (1,024 seeds,
+scripted expert, `c`): the success-by-factor plot and a still from the video of the first
+failed episode.
 
     python docs/make_images.py
 """

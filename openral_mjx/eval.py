@@ -120,7 +120,7 @@ class EvalArgs:
     processes: int = 1
     """Run as this many processes on this host, each driving an equal share of the GPUs, as one
     job (jax.distributed): on warp, one process per GPU scales where one process for all does
-    not (see README)."""
+    not (see docs/gpu.md)."""
     task_processes: int = 1
     """With --suite: run this many tasks at once, one process each. On one GPU it pays only
     under NVIDIA's MPS daemon (nvidia-cuda-mps-control -d): 16 MetaWorld tasks at 1,000 envs

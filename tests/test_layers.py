@@ -1,4 +1,4 @@
-"""The package's layers: every import points down the README's Architecture list, never up.
+"""The package's layers: every import points down docs/architecture.md's list, never up.
 
 Read from the source (every `import`, function-level ones included), so a new module that
 reaches up a layer fails here rather than growing a cycle later.
@@ -12,7 +12,7 @@ from pathlib import Path
 import openral_mjx
 
 ROOT = Path(openral_mjx.__file__).parent
-# Top to bottom, as README.md's Architecture section lists them. Units on one line are peers
+# Top to bottom, as docs/architecture.md lists them. Units on one line are peers
 # that never import each other.
 LAYERS = [
     {"eval.py", "compare.py", "bench.py", "finetune.py"},
@@ -59,7 +59,9 @@ def _imports(path: Path) -> set[str]:
 
 def test_every_unit_has_a_layer():
     units = {p.name for p in ROOT.iterdir() if p.suffix == ".py" or (p / "__init__.py").exists()}
-    assert units == set().union(*LAYERS), "add the new module or package to LAYERS and README"
+    assert units == set().union(*LAYERS), (
+        "add the new module or package to LAYERS and docs/architecture.md"
+    )
 
 
 def test_imports_point_down():

@@ -7,7 +7,7 @@ runner's tracing variant. Where the backend's episodes do not depend on the batc
 inside the very batch it ran in during the evaluation (same seeds, same padding, same
 devices). Each re-simulated episode is compared with the evaluated one (success, steps,
 divergence, total reward bit for bit), and the video says whether they agree: on a GPU even
-the same batch can come out differently (see the README's determinism table).
+the same batch can come out differently (see the determinism table in docs/cli.md).
 """
 
 from __future__ import annotations

@@ -68,7 +68,7 @@ class CBackend(PhysicsBackend):
     """
 
     name = "c"
-    layout_invariant = True  # per-env C physics outside XLA; see README's determinism table
+    layout_invariant = True  # per-env C physics outside XLA; see docs/cli.md's determinism table
 
     def _setup(self, spec: mujoco.MjSpec) -> None:
         self.threads = self.settings.threads or default_threads()

@@ -19,9 +19,9 @@ class MetaWorldMjxOptions(SensorObsOptions):
     Pixel observations (off by default; `warp` only): `obs_rgb_cameras` names cameras of
     MetaWorld's model (`corner`, `corner2`, `corner3`, `corner4`, `topview`, `behindGripper`,
     `gripperPOV`), each an `rgb_CAMERA` slice of `obs_rgb_size` after the 39 state floats,
-    drawn with textures, skybox and shadows as MetaWorld's own renders are (README: how far
-    they agree). Depth cameras and lasers are ray cast, which knows primitive geoms only, and
-    MetaWorld's models are meshes: they are rejected here.
+    drawn with textures, skybox and shadows as MetaWorld's own renders are (how far they
+    agree: docs/metaworld_mjx.md). Depth cameras and lasers are ray cast, which knows
+    primitive geoms only, and MetaWorld's models are meshes: they are rejected here.
     """
 
     task: str = "reach-v3"

@@ -78,6 +78,7 @@ def test_bc_writes_an_evaluable_checkpoint(bc_dir):
     assert summary["losses"][-1] < summary["losses"][0]
 
 
+@pytest.mark.heavy
 def test_ppo_resume_matches_uninterrupted_run(monkeypatch, capsys, tmp_path, bc_dir):
     """Run A trains 4 updates in one go. Run B trains 3, loses its last checkpoint (as if killed
     after logging update 3 but before saving it), and resumes to 4. On the CPU, XLA and MuJoCo C

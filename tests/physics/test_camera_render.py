@@ -127,6 +127,7 @@ def warp_states(box_warp_cameras):
     return state, jax.jit(jax.vmap(scene.step))(state, jnp.asarray(action, jnp.float32))
 
 
+@pytest.mark.heavy
 def test_warp_renderer_depth_matches_the_ray_cast_on_the_same_state(box_warp_cameras, warp_states):
     """On warp the depth observation is MuJoCo-Warp's render; on the same state (its body
     poses) the ray cast draws the same image: measured within 7.5e-6 m on every pixel of

@@ -70,7 +70,9 @@ def test_c_backend_matches_mj_step(push_c, initial_qpos, reference):
     np.testing.assert_allclose(got, reference, rtol=0, atol=1e-6)
 
 
-@pytest.mark.parametrize("fixture", ["push_mjx", "push_warp"])
+@pytest.mark.parametrize(
+    "fixture", [pytest.param(f, marks=pytest.mark.heavy) for f in ("push_mjx", "push_warp")]
+)
 def test_float32_backends_match_mj_step(fixture, request, initial_qpos, reference):
     """MJX's JAX and MuJoCo-Warp (CPU mode here) implementations run in float32 with the same
     solver settings (6 Newton iterations). Measured worst cases over 200 steps: arm joints

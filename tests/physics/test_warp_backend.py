@@ -25,6 +25,7 @@ def test_contact_overflow_marks_env_diverged():
     assert not state.metrics["success"].any()
 
 
+@pytest.mark.heavy
 def test_runner_on_warp(push_warp):
     """Freezing (via `Data.where`), bookkeeping and run-to-run determinism on warp."""
     pol = make_policy("scripted", push_warp)

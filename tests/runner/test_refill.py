@@ -51,6 +51,7 @@ def test_every_seed_gives_the_chunked_episode_bit_for_bit(push_c, chunked, n_env
         assert timing.env_steps < chunk_timing.env_steps
 
 
+@pytest.mark.heavy
 def test_a_draining_batch_shrinks_and_keeps_every_episode(push_c, chunked):
     """Once every seed has a slot, the running slots move into half-size batches (8 -> 4 -> 2
     slots): the same outcomes bit for bit, and fewer env-steps simulated than at full size."""
@@ -97,6 +98,7 @@ def test_shrink_sizes():
     assert shrink_sizes(1024, 3, 1024) == []
 
 
+@pytest.mark.heavy
 def test_refill_on_warp_cpu_is_bit_identical_to_chunks(push_warp):
     """Warp shares one contact buffer across the batch: a reset slot takes the fresh state's
     per-env leaves and leaves the shared buffer to the next step's collision pass. In Warp's

@@ -48,6 +48,7 @@ def test_warp_on_four_devices_equals_one_device():
     assert any(result["success"])  # episodes long enough to differ if anything were off
 
 
+@pytest.mark.heavy
 def test_two_processes_equal_one_process(tmp_path):
     """`eval --processes 2`: two processes of one job (jax.distributed over gloo on the CPU),
     2 devices each, shard the seeds over all 4 devices; process 0 alone writes the report, and

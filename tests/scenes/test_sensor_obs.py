@@ -102,6 +102,7 @@ def test_unknown_camera_is_a_build_time_error():
         make_scene("tabletop_push", {"obs_laser_frame": "chassis"}, backend="c")
 
 
+@pytest.mark.heavy
 def test_depth_policy_in_the_loop_and_frames_beside_the_report(box_depth_c, tmp_path):
     """The random-weight CNN acts on the depth image under one jit; the first episodes' frames,
     re-simulated after the run, are bit for bit the depth slices of the observations the policy

@@ -46,6 +46,7 @@ from openral_mjx.scenes.factor_ranges import (
     available_factors,
     parse_factors,
 )
+from openral_mjx.scenes.wrapper import SceneWrapper
 
 INFO_KEY = "randomization"
 
@@ -64,14 +65,15 @@ def _obs_index(layout: Mapping[str, tuple[int, int]], names: Sequence[str]) -> n
     ).astype(np.int32)
 
 
-class Randomized(Scene):
+class Randomized(SceneWrapper):
     """`scene` with `factors` drawn per seed at reset (see the module docstring).
 
-    Everything else (model, backend, options, scripted policies, videos) is the scene's own.
+    Everything else (model, backend, options, scripted policies, videos) is the scene's own,
+    forwarded by `SceneWrapper`; what reads a state reads it as the scene knows it.
     """
 
     def __init__(self, scene: Scene, factors: Sequence[FactorRange]) -> None:
-        self.inner = scene
+        super().__init__(scene)
         self.factors = tuple(factors)
         if not self.factors:
             raise ConfigError("Randomized needs at least one factor")
@@ -333,25 +335,14 @@ class Randomized(Scene):
     def episode_info(self, state: State) -> dict[str, jax.Array]:
         return self.inner.episode_info(self._inner_view(state))
 
-    def describe_episode(self, info: dict[str, Any]) -> dict[str, Any]:
-        return self.inner.describe_episode(info)
-
     def frame_record(self, state: State) -> dict[str, jax.Array]:
         return self.inner.frame_record(self._inner_view(state))
-
-    def pose_frame(
-        self, model: mujoco.MjModel, data: mujoco.MjData, record: Mapping[str, np.ndarray]
-    ) -> None:
-        self.inner.pose_frame(model, data, record)
 
     def sensor_frames(self, state: State) -> dict[str, jax.Array]:
         return self.inner.sensor_frames(self._inner_view(state))
 
-    def prepare(self, n_envs: int) -> None:
-        self.inner.prepare(n_envs)
-
-    def close(self) -> None:
-        self.inner.close()
+    def policy_images(self, state: State) -> dict[str, jax.Array]:
+        return self.inner.policy_images(self._inner_view(state))
 
     def randomization_targets(self) -> RandomizationTargets | None:
         return self.targets
@@ -362,53 +353,6 @@ class Randomized(Scene):
     def describe(self) -> dict[str, str]:
         """The factors as the CLI writes them (for the report's options)."""
         return {f.name: f.text().partition("=")[2] for f in self.factors}
-
-    # What the wrapped scene is, unchanged.
-    name = property(lambda self: self.inner.name)  # type: ignore[assignment]
-    task = property(lambda self: self.inner.task)  # type: ignore[assignment]
-    instruction = property(lambda self: self.inner.instruction)  # type: ignore[assignment]
-    backend = property(lambda self: self.inner.backend)  # type: ignore[assignment]
-    spec = property(lambda self: self.inner.spec)  # type: ignore[assignment]
-    options = property(lambda self: self.inner.options)  # type: ignore[assignment]
-    robot_name = property(lambda self: self.inner.robot_name)  # type: ignore[assignment]
-    sensor_shapes = property(lambda self: self.inner.sensor_shapes)  # type: ignore[assignment]
-    video_camera = property(lambda self: self.inner.video_camera)  # type: ignore[assignment]
-
-    @property
-    def max_steps(self) -> int:
-        return self.inner.max_steps
-
-    @property
-    def action_size(self) -> int:
-        return self.inner.action_size
-
-    @property
-    def obs_layout(self) -> dict[str, tuple[int, int]]:
-        return self.inner.obs_layout
-
-    @property
-    def obs_shapes(self) -> dict[str, tuple[int, ...]]:
-        return self.inner.obs_shapes
-
-    @property
-    def control_dt(self) -> float:
-        return self.inner.control_dt
-
-    @property
-    def mj_model(self) -> mujoco.MjModel:
-        return self.inner.mj_model
-
-    def action_obs_index(self) -> tuple[int, ...] | None:
-        return self.inner.action_obs_index()
-
-    def action_bounds(self) -> tuple[jax.Array, jax.Array]:
-        return self.inner.action_bounds()
-
-    def __getattr__(self, name: str) -> Any:
-        """The wrapped scene's own methods (its scripted policy, kinematics)."""
-        if name == "inner":  # not yet set: construction failed early
-            raise AttributeError(name)
-        return getattr(self.inner, name)
 
 
 def randomize(scene: Scene, factors: Sequence[FactorRange | str]) -> Scene:

@@ -47,7 +47,7 @@ from openral_mjx.scenes import (
     scene_options,
     scene_suite,
 )
-from openral_mjx.scenes.randomization import parse_factors
+from openral_mjx.scenes.factor_ranges import parse_factors
 from openral_mjx.stats import compare_reports, format_breakdown, format_comparison
 from openral_mjx.viz import require_viz
 from openral_mjx.viz.gl import GLUnavailable, camera_id, gl_backend

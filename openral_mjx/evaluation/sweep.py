@@ -27,13 +27,13 @@ from openral_mjx.evaluation.run import run_evaluation
 from openral_mjx.policies import Policy, make_policy
 from openral_mjx.report.sweep import SweepPoint, SweepReport, SweepStep
 from openral_mjx.scenes import Scene
-from openral_mjx.scenes.randomization import (
+from openral_mjx.scenes.factor_ranges import (
     FactorRange,
-    Randomized,
     available_factors,
     grid_values,
     parse_factor,
 )
+from openral_mjx.scenes.randomization import Randomized
 from openral_mjx.stats import holm_adjusted, paired_comparison
 
 

@@ -1,4 +1,5 @@
-"""Per-env randomisation and sweeps (`scenes.randomization`, `evaluation.sweep`).
+"""Per-env randomisation and sweeps (`scenes.factor_ranges`, `scenes.randomization`,
+`evaluation.sweep`).
 
 The physics factors are checked against MuJoCo C stepped by hand on a model copy holding the
 env's values, read back from the env's state; the control and sensing factors against the
@@ -20,15 +21,8 @@ from openral_mjx.core.errors import ConfigError
 from openral_mjx.evaluation import build_scene
 from openral_mjx.evaluation.sweep import run_sweep
 from openral_mjx.report.sweep import load_sweep, save_sweep
-from openral_mjx.scenes.randomization import (
-    INFO_KEY,
-    FactorRange,
-    Randomized,
-    grid_values,
-    parse_factor,
-    parse_factors,
-    randomize,
-)
+from openral_mjx.scenes.factor_ranges import FactorRange, grid_values, parse_factor, parse_factors
+from openral_mjx.scenes.randomization import INFO_KEY, Randomized, randomize
 from openral_mjx.stats import holm_adjusted
 
 SEEDS = jnp.array([3, 11, 20])

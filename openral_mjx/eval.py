@@ -92,7 +92,7 @@ class EvalArgs:
     """refill: continuous batching, a slot whose episode ended takes the next seed (mjx, warp
     and c); chunks: fixed batches of n_envs seeds, each run for max_steps; auto: refill when
     there are more episodes than envs and it applies (not host scenes, not --plots). Per
-    seed the episodes are the same."""
+    seed the episodes are the same. With --suite, every task runs so."""
     refill_every: int = 1
     """--batching refill: reset ended slots every this many control steps (batched resets)."""
     seed: int = 0
@@ -128,7 +128,8 @@ class EvalArgs:
     out: Path | None = None
     """Report path (default: results/SCENE_POLICY_TIMESTAMP.json)."""
     factor_bins: int = 5
-    """Equal-count bins per episode factor in the report's success breakdown."""
+    """Equal-count bins per episode factor in the report's success breakdown (not with --suite:
+    a suite report has no breakdown)."""
     breakdown: bool = True
     """Print the success breakdown by episode factor."""
     compare_with: Path | None = None

@@ -503,17 +503,11 @@ def execute(
                 built.scene,
                 args.policy,
                 args.sweep,
+                # --plots draws the sweep's curve, not reward curves: no per-step rewards
+                dataclasses.replace(plan.spec, step_rewards=False),
                 randomize=parse_factors(args.randomize),
                 on_point=on_point,
-                command=plan.command,
-                n_envs=args.n_envs,
-                n_episodes=args.n_episodes,
-                factor_bins=args.factor_bins,
-                seed=args.seed,
-                max_steps=args.max_steps,
                 on_chunk=on_chunk,
-                batching=args.batching,
-                refill_every=args.refill_every,
             )
         evaluation = evaluate_spec(built.scene, args.policy, plan.spec, on_chunk=on_chunk)
     owned.enter_context(evaluation)

@@ -122,3 +122,38 @@ def test_suite_honours_batching(monkeypatch, batching, refill_every, shown):
     report = suite_module.evaluate_suite("tabletop_push", "pair", "zero", spec)
     assert report.options["batching"] == shown
     assert [r.n_episodes for r in report.per_task] == [4, 4]
+
+
+def test_every_run_flag_reaches_the_spec():
+    """Each flag a run needs lands in the plan's spec (the one object every mode runs from),
+    so no mode can be handed a partial list of them."""
+    args = eval_cli.EvalArgs(
+        backend="c",
+        n_envs=8,
+        n_episodes=16,
+        max_steps=7,
+        seed=3,
+        factor_bins=2,
+        batching="chunks",
+        refill_every=2,
+        threads=1,
+        contacts_per_env=9,
+        devices=1,
+        plots=False,
+    )
+    spec = eval_cli.validate(args).spec
+    for name in (
+        "n_envs",
+        "n_episodes",
+        "max_steps",
+        "seed",
+        "factor_bins",
+        "batching",
+        "refill_every",
+        "threads",
+        "contacts_per_env",
+        "devices",
+        "backend",
+    ):
+        assert getattr(spec, name) == getattr(args, name), name
+    assert spec.command.startswith("python -m openral_mjx.eval")

@@ -25,10 +25,10 @@ from openral_mjx.cli.common import command_line, guarded, stderr
 from openral_mjx.core.errors import ConfigError
 from openral_mjx.core.files import check_writable
 from openral_mjx.core.options import load_yaml, parse_overrides
-from openral_mjx.evaluation import Evaluation, build_scene, run_evaluation
+from openral_mjx.evaluation import Evaluation, RunSpec
 from openral_mjx.evaluation.frames import check_frames, record_frames, save_frames
 from openral_mjx.evaluation.replay import EpisodeTrace, choose_seeds, trace_episodes
-from openral_mjx.evaluation.run import check_run
+from openral_mjx.evaluation.run import build_spec_scene, evaluate_spec
 from openral_mjx.evaluation.suite import evaluate_suite, format_tasks, mps_running
 from openral_mjx.evaluation.sweep import parse_sweep, run_sweep
 from openral_mjx.physics import BACKEND_NAMES
@@ -37,7 +37,7 @@ from openral_mjx.policies.lerobot import implied_camera_options
 from openral_mjx.report import EvalReport, load_report, save_report
 from openral_mjx.report.sweep import SweepReport, save_sweep
 from openral_mjx.robots import ROBOTS
-from openral_mjx.runner import check_batching, processes
+from openral_mjx.runner import processes
 from openral_mjx.runner.compile_cache import default_cache_dir, enable_compilation_cache
 from openral_mjx.scenes import (
     SCENES,
@@ -92,7 +92,7 @@ class EvalArgs:
     """refill: continuous batching, a slot whose episode ended takes the next seed (mjx, warp
     and c); chunks: fixed batches of n_envs seeds, each run for max_steps; auto: refill when
     there are more episodes than envs and it applies (not host scenes, not --plots). Per
-    seed the episodes are the same."""
+    seed the episodes are the same. With --suite, every task runs so."""
     refill_every: int = 1
     """--batching refill: reset ended slots every this many control steps (batched resets)."""
     seed: int = 0
@@ -128,7 +128,8 @@ class EvalArgs:
     out: Path | None = None
     """Report path (default: results/SCENE_POLICY_TIMESTAMP.json)."""
     factor_bins: int = 5
-    """Equal-count bins per episode factor in the report's success breakdown."""
+    """Equal-count bins per episode factor in the report's success breakdown (not with --suite:
+    a suite report has no breakdown)."""
     breakdown: bool = True
     """Print the success breakdown by episode factor."""
     compare_with: Path | None = None
@@ -168,7 +169,12 @@ class EvalPlan:
     options: dict
     out: Path
     baseline: EvalReport | None
-    command: str
+    spec: RunSpec
+
+    @property
+    def command(self) -> str:
+        """The command line that reproduces this run (the report's `command`)."""
+        return self.spec.command
 
     @property
     def want_video(self) -> bool:
@@ -198,22 +204,13 @@ def validate(args: EvalArgs) -> EvalPlan:
         _check_processes(args)
     backend = resolve_scene_backend(args.scene, args.backend)
     options = _scene_options(args)
-    check_run(
-        args.n_envs,
-        args.n_episodes,
-        args.target_halfwidth,
-        args.max_episodes,
-        args.max_steps,
-        args.seed,
-        args.factor_bins,
-    )
+    spec = _run_spec(args, backend)
     if min(args.video, args.video_failures) < 0:
         raise ConfigError(
             f"--video and --video-failures must be >= 0, got {args.video}, {args.video_failures}"
         )
     if args.frames < 0:
         raise ConfigError(f"frames must be >= 0, got {args.frames}")
-    check_batching(args.batching, backend, args.refill_every, traces=args.plots)
     want_video = args.video > 0 or args.video_failures > 0
     if want_video or args.plots:
         require_viz()
@@ -224,6 +221,7 @@ def validate(args: EvalArgs) -> EvalPlan:
         )
     if args.suite is not None:
         _check_suite(args, want_video)
+        spec.for_suite()
     elif args.task_processes != 1:
         raise ConfigError("--task-processes runs the tasks of a --suite at once: give --suite")
     _check_randomize(args, want_video)
@@ -237,7 +235,28 @@ def validate(args: EvalArgs) -> EvalPlan:
                 f"reports are not comparable: scene {baseline.scene!r} ({args.compare_with}) "
                 f"vs {args.scene!r}"
             )
-    return EvalPlan(args, backend, options, out, baseline, _reproduce(args, backend, out))
+    spec = dataclasses.replace(spec, command=_reproduce(args, backend, out))
+    return EvalPlan(args, backend, options, out, baseline, spec)
+
+
+def _run_spec(args: EvalArgs, backend: str) -> RunSpec:
+    """The run's settings from the flags, checked (`ConfigError` naming the first bad one)."""
+    return RunSpec(
+        n_envs=args.n_envs,
+        n_episodes=args.n_episodes,
+        target_halfwidth=args.target_halfwidth,
+        max_episodes=args.max_episodes,
+        max_steps=args.max_steps,
+        seed=args.seed,
+        factor_bins=args.factor_bins,
+        batching=args.batching,
+        refill_every=args.refill_every,
+        step_rewards=args.plots,
+        backend=backend,
+        threads=args.threads,
+        contacts_per_env=args.contacts_per_env,
+        devices=args.devices,
+    )
 
 
 def _default_out(args: EvalArgs) -> Path:
@@ -393,14 +412,10 @@ def build(plan: EvalPlan, owned: contextlib.ExitStack) -> Built:
         return Built()
     # a lerobot policy's cameras, unless --opt names them (run_evaluation does the same)
     implied = implied_camera_options(args.policy, SCENES.get(args.scene).options_cls, plan.options)
-    scene = build_scene(
+    scene = build_spec_scene(
         args.scene,
         {**implied, **(plan.options or {})},
-        backend=plan.backend,
-        n_envs=args.n_envs,
-        threads=args.threads,
-        contacts_per_env=args.contacts_per_env,
-        devices=args.devices,
+        plan.spec,
         randomize=args.randomize if args.sweep is None else (),
     )
     owned.callback(scene.close)
@@ -468,16 +483,8 @@ def execute(
                 args.scene,
                 args.suite,
                 args.policy,
-                n_envs=args.n_envs,
-                n_episodes=args.n_episodes,
-                seed=args.seed,
-                max_steps=args.max_steps,
+                plan.spec,
                 options=plan.options,
-                command=plan.command,
-                backend=plan.backend,
-                threads=args.threads,
-                contacts_per_env=args.contacts_per_env,
-                devices=args.devices,
                 task_processes=args.task_processes,
                 compile_cache=default_cache_dir() if args.compile_cache else None,
                 on_task=on_task,
@@ -496,35 +503,13 @@ def execute(
                 built.scene,
                 args.policy,
                 args.sweep,
+                # --plots draws the sweep's curve, not reward curves: no per-step rewards
+                dataclasses.replace(plan.spec, step_rewards=False),
                 randomize=parse_factors(args.randomize),
                 on_point=on_point,
-                command=plan.command,
-                n_envs=args.n_envs,
-                n_episodes=args.n_episodes,
-                factor_bins=args.factor_bins,
-                seed=args.seed,
-                max_steps=args.max_steps,
                 on_chunk=on_chunk,
-                batching=args.batching,
-                refill_every=args.refill_every,
             )
-        evaluation = run_evaluation(
-            built.scene,
-            args.policy,
-            n_envs=args.n_envs,
-            n_episodes=args.n_episodes,
-            target_halfwidth=args.target_halfwidth,
-            max_episodes=args.max_episodes,
-            factor_bins=args.factor_bins,
-            seed=args.seed,
-            max_steps=args.max_steps,
-            backend=plan.backend,
-            command=plan.command,
-            on_chunk=on_chunk,
-            step_rewards=args.plots,
-            batching=args.batching,
-            refill_every=args.refill_every,
-        )
+        evaluation = evaluate_spec(built.scene, args.policy, plan.spec, on_chunk=on_chunk)
     owned.enter_context(evaluation)
     return evaluation
 

@@ -34,7 +34,7 @@ def test_unwritable_out_is_one_line_before_anything_runs(
     (tmp_path / "file.txt").write_text("x")
     (tmp_path / "a_dir").mkdir()
     before = sorted(p.name for p in tmp_path.iterdir())
-    monkeypatch.setattr(eval_cli, "build_scene", _no_build)
+    monkeypatch.setattr(eval_cli, "build_spec_scene", _no_build)
     monkeypatch.setattr(sys, "argv", ["openral_mjx.eval", "--out", str(tmp_path / out)])
     with pytest.raises(SystemExit) as exc:
         eval_cli.main()
@@ -55,7 +55,7 @@ def test_check_writable_probes_the_directory(tmp_path):
 
 
 def test_validate_builds_nothing_and_plans_every_path(monkeypatch, tmp_path):
-    monkeypatch.setattr(eval_cli, "build_scene", _no_build)
+    monkeypatch.setattr(eval_cli, "build_spec_scene", _no_build)
     args = eval_cli.EvalArgs(n_envs=4, max_steps=3, out=tmp_path / "r.json", frames=2)
     args.opt = ("cube_friction=0.5",)
     plan = eval_cli.validate(args)
@@ -98,7 +98,7 @@ def test_each_step_alone(capsys, tmp_path):
     ],
 )
 def test_batching_mistakes_are_refused_before_anything_is_built(monkeypatch, argv, needle):
-    monkeypatch.setattr(eval_cli, "build_scene", _no_build)
+    monkeypatch.setattr(eval_cli, "build_spec_scene", _no_build)
     with pytest.raises(ConfigError, match=needle):
         eval_cli.validate(eval_cli.EvalArgs(**_flags(argv)))
 

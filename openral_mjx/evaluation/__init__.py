@@ -1,13 +1,16 @@
 """The evaluation library behind `python -m openral_mjx.eval`: build a scene, roll out seeds
-with the runner, aggregate the report (`run`); suites of tasks (`suite`); re-simulating chosen
-episodes step by step (`replay`) and saving their sensor frames (`frames`)."""
+with the runner, aggregate the report (`run`) under one checked `RunSpec` (`spec`); suites of
+tasks (`suite`); re-simulating chosen episodes step by step (`replay`) and saving their sensor
+frames (`frames`)."""
 
 from openral_mjx.evaluation.provenance import device_description, package_versions
 from openral_mjx.evaluation.run import Evaluation, build_scene, evaluate, run_evaluation
 from openral_mjx.evaluation.sequential import SequentialRule
+from openral_mjx.evaluation.spec import RunSpec
 
 __all__ = [
     "Evaluation",
+    "RunSpec",
     "SequentialRule",
     "build_scene",
     "device_description",

@@ -15,7 +15,7 @@ from openral_mjx.core.errors import ConfigError
 from openral_mjx.core.options import to_dict
 from openral_mjx.evaluation.episodes import episode_results
 from openral_mjx.evaluation.provenance import device_description, package_versions
-from openral_mjx.evaluation.sequential import SequentialRule, sequential_rule
+from openral_mjx.evaluation.spec import RunSpec
 from openral_mjx.physics import PhysicsSettings
 from openral_mjx.policies import Policy, make_policy
 from openral_mjx.policies.lerobot import implied_camera_options
@@ -31,30 +31,6 @@ from openral_mjx.scenes import SCENES, Scene, make_scene, randomization
 from openral_mjx.stats.breakdown import breakdown
 from openral_mjx.stats.intervals import wilson_interval
 from openral_mjx.stats.sequential import RULE
-
-
-def check_run(
-    n_envs: int,
-    n_episodes: int | None,
-    target_halfwidth: float | None,
-    max_episodes: int | None,
-    max_steps: int | None,
-    seed: int,
-    factor_bins: int,
-) -> tuple[SequentialRule | None, int]:
-    """Check a run's counts before anything is built (`ConfigError` naming the bad value);
-    return the sequential stopping rule for `target_halfwidth` (None for a fixed count) and
-    how many seeds the run is given (a sequential run's cap)."""
-    rule = sequential_rule(n_envs, n_episodes, target_halfwidth, max_episodes)
-    episodes = n_envs if n_episodes is None else n_episodes
-    if rule is not None:
-        episodes = rule.max_episodes
-    check_counts(n_envs, episodes, 1 if max_steps is None else max_steps)
-    if seed < 0:
-        raise ConfigError(f"seed must be >= 0, got {seed}")
-    if factor_bins < 1:
-        raise ConfigError(f"factor_bins must be a positive integer, got {factor_bins}")
-    return rule, episodes
 
 
 def build_scene(
@@ -79,6 +55,22 @@ def build_scene(
         settings = dataclasses.replace(settings, contacts_per_env=contacts_per_env)
     scene = make_scene(name, options, backend=backend, settings=settings)
     return randomization.randomize(scene, randomize)
+
+
+def build_spec_scene(
+    name: str, options: Mapping[str, Any] | None, spec: RunSpec, randomize: Sequence[str] = ()
+) -> Scene:
+    """`build_scene` with the spec's backend, batch size, threads, contacts and devices."""
+    return build_scene(
+        name,
+        options,
+        backend=spec.backend,
+        n_envs=spec.n_envs,
+        threads=spec.threads,
+        contacts_per_env=spec.contacts_per_env,
+        devices=spec.devices,
+        randomize=randomize,
+    )
 
 
 @dataclasses.dataclass
@@ -162,24 +154,48 @@ def run_evaluation(
     control steps) or `auto` (`refill` where it applies: see `resolve_batching`); per seed
     the episodes are the same. `randomize` draws factors per seed (``NAME=LOW:HIGH``, see
     `scenes.randomization`) on the scene, built here or given."""
-    rule, n_episodes = check_run(
-        n_envs, n_episodes, target_halfwidth, max_episodes, max_steps, seed, factor_bins
+    spec = RunSpec(
+        n_envs=n_envs,
+        n_episodes=n_episodes,
+        target_halfwidth=target_halfwidth,
+        max_episodes=max_episodes,
+        max_steps=max_steps,
+        seed=seed,
+        factor_bins=factor_bins,
+        batching=batching,
+        refill_every=refill_every,
+        step_rewards=step_rewards,
+        backend=backend,
+        threads=threads,
+        contacts_per_env=contacts_per_env,
+        devices=devices,
+        command=command,
     )
+    return evaluate_spec(
+        scene, policy, spec, options=options, on_chunk=on_chunk, randomize=randomize
+    )
+
+
+def evaluate_spec(
+    scene: str | Scene,
+    policy: str | Policy,
+    spec: RunSpec,
+    *,
+    options: Mapping[str, Any] | None = None,
+    on_chunk: Callable[[int, int, int], None] | None = None,
+    randomize: Sequence[str] = (),
+) -> Evaluation:
+    """`run_evaluation` for a checked `RunSpec`: `scene` (a name: built from `options` as the
+    spec says, and closed with the `Evaluation`) run under `policy`."""
+    rule, n_episodes = spec.stopping_rule(), spec.episodes
+    seed, step_rewards = spec.seed, spec.step_rewards
     owned = contextlib.ExitStack()
     with owned:  # on an error, close what this call built (worker processes)
         if isinstance(scene, str):
             if isinstance(policy, str):  # a lerobot policy's cameras, unless options name them
                 implied = implied_camera_options(policy, SCENES.get(scene).options_cls, options)
                 options = {**implied, **(options or {})}
-            scene = build_scene(
-                scene,
-                options,
-                backend=backend,
-                n_envs=n_envs,
-                threads=threads,
-                contacts_per_env=contacts_per_env,
-                devices=devices,
-            )
+            scene = build_spec_scene(scene, options, spec)
             owned.callback(scene.close)
         scene = randomization.randomize(scene, randomize)
         if isinstance(policy, str):
@@ -190,11 +206,12 @@ def run_evaluation(
             pol, policy = policy, policy.name
         if pol.instruct is not None:  # this task's (a suite shares one policy over its tasks)
             pol.instruct(scene.instruction)
-        steps = scene.max_steps if max_steps is None else max_steps
+        steps = scene.max_steps if spec.max_steps is None else spec.max_steps
         aligned = pol.aligned_episodes
-        check_batching(batching, scene.backend.name, refill_every, step_rewards, aligned)
+        refill_every = spec.refill_every
+        check_batching(spec.batching, scene.backend.name, refill_every, step_rewards, aligned)
         batching = resolve_batching(
-            batching, scene.backend.name, n_episodes, n_envs, step_rewards, aligned
+            spec.batching, scene.backend.name, n_episodes, spec.n_envs, step_rewards, aligned
         )
         requested = np.arange(seed, seed + n_episodes, dtype=np.int64)
         params, _ = pol.init(jax.random.PRNGKey(seed), scene.observation_spec)
@@ -203,7 +220,7 @@ def run_evaluation(
             pol,
             params,
             seeds=requested,
-            n_envs=n_envs,
+            n_envs=spec.n_envs,
             max_steps=steps,
             on_chunk=on_chunk,
             until=rule,
@@ -277,7 +294,7 @@ def run_evaluation(
                 instruction=scene.instruction,
             )
         ],
-        breakdown=breakdown(factors, arrays["success"], factor_bins),
+        breakdown=breakdown(factors, arrays["success"], spec.factor_bins),
         env_steps_per_s=timing.env_steps / timing.run_s,
         episodes_per_s=n_episodes / timing.run_s,
         live_env_steps_per_s=float(arrays["steps"].sum()) / timing.run_s,
@@ -295,7 +312,7 @@ def run_evaluation(
             ),
         },
         versions=package_versions(),
-        command=command,
+        command=spec.command,
         created_at=dt.datetime.now(dt.UTC).isoformat(timespec="seconds"),
         episodes=episodes,
         sequential=sequential,

@@ -26,7 +26,8 @@ from pathlib import Path
 from typing import Any
 
 from openral_mjx.core.errors import ConfigError
-from openral_mjx.evaluation.run import build_scene, evaluate
+from openral_mjx.evaluation.run import build_spec_scene, evaluate_spec
+from openral_mjx.evaluation.spec import RunSpec
 from openral_mjx.policies import Policy, make_policy
 from openral_mjx.report import EvalReport, TaskRow
 from openral_mjx.runner.compile_cache import enable_compilation_cache
@@ -47,50 +48,30 @@ def evaluate_suite(
     scene: str,
     suite: str,
     policy: str,
+    spec: RunSpec,
     *,
-    n_envs: int,
-    n_episodes: int | None = None,
-    seed: int = 0,
-    max_steps: int | None = None,
     options: Mapping[str, Any] | None = None,
-    command: str = "",
-    backend: str = "host",
-    threads: int | None = None,
-    contacts_per_env: int | None = None,
-    devices: int | None = None,
     task_processes: int = 1,
     compile_cache: Path | None = None,
     on_task: Callable[[int, int, str], None] | None = None,
     on_chunk: Callable[[int, int, int], None] | None = None,
 ) -> EvalReport:
-    """Run `policy` on every task of `suite` on `backend` (`host` for a host scene; `mjx`,
-    `warp` or `c` for a mirror such as `metaworld_mjx`). One task at a time, `on_task(i, n,
-    task)` before each; with `task_processes` > 1, that many at once, `on_task` as each ends
+    """Run `policy` on every task of `suite` as `spec` says (`RunSpec.for_suite`: a setting a
+    suite cannot honour is refused), on its backend (`host` for a host scene; `mjx`, `warp`
+    or `c` for a mirror such as `metaworld_mjx`). One task at a time, `on_task(i, n, task)`
+    before each; with `task_processes` > 1, that many at once, `on_task` as each ends
     (`compile_cache`: the directory each process caches compiled programs in).
 
     With several processes the report's `run_s` is the wall time of all the tasks together
     (their builds and compiles overlap their runs, so they are in it) and `compile_s` the sum
     of the tasks' own compile times."""
+    spec = spec.for_suite()
     if task_processes < 1:
         raise ConfigError(f"task_processes must be >= 1, got {task_processes}")
     tasks = scene_suite(scene, suite)
-    build = {
-        "backend": backend,
-        "n_envs": n_envs,
-        "threads": threads,
-        "contacts_per_env": contacts_per_env,
-        "devices": devices,
-    }
-    run = {
-        "n_envs": n_envs,
-        "n_episodes": n_episodes,
-        "seed": seed,
-        "max_steps": max_steps,
-        "command": command,
-    }
     if task_processes > 1:
         return _suite_in_processes(
-            scene, suite, policy, tasks, options, build, run, task_processes, compile_cache, on_task
+            scene, suite, policy, tasks, options, spec, task_processes, compile_cache, on_task
         )
     reports: list[EvalReport] = []
     pol: Policy | None = None
@@ -98,16 +79,17 @@ def evaluate_suite(
         for i, task in enumerate(tasks):
             if on_task is not None:
                 on_task(i, len(tasks), task)
-            built = build_scene(scene, {**(options or {}), "task": task}, **build)
+            built = build_spec_scene(scene, {**(options or {}), "task": task}, spec)
             with contextlib.closing(built):
                 if pol is None or pol.per_task:
                     _close(pol)
                     pol = None
                     pol = make_policy(policy, built)
-                reports.append(evaluate(built, pol, **run, on_chunk=on_chunk))
+                with evaluate_spec(built, pol, spec, on_chunk=on_chunk) as evaluation:
+                    reports.append(evaluation.report)
     finally:
         _close(pol)
-    return merge_reports(reports, suite, policy, command)
+    return merge_reports(reports, suite, policy, spec.command)
 
 
 def _close(policy: Policy | None) -> None:
@@ -128,15 +110,15 @@ def _task_report(
     task: str,
     policy: str,
     options: Mapping[str, Any],
-    build: Mapping[str, Any],
-    run: Mapping[str, Any],
+    spec: RunSpec,
 ) -> EvalReport:
     """One task's report, its scene and policy built (and closed) in this process."""
-    built = build_scene(scene, {**options, "task": task}, **build)
+    built = build_spec_scene(scene, {**options, "task": task}, spec)
     with contextlib.closing(built):
         pol = make_policy(policy, built)
         try:
-            return evaluate(built, pol, **run)
+            with evaluate_spec(built, pol, spec) as evaluation:
+                return evaluation.report
         finally:
             _close(pol)
 
@@ -147,8 +129,7 @@ def _suite_in_processes(
     policy: str,
     tasks: list[str],
     options: Mapping[str, Any] | None,
-    build: Mapping[str, Any],
-    run: Mapping[str, Any],
+    spec: RunSpec,
     task_processes: int,
     compile_cache: Path | None,
     on_task: Callable[[int, int, str], None] | None,
@@ -163,7 +144,7 @@ def _suite_in_processes(
         initargs=(compile_cache,),
     ) as pool:
         futures = {
-            pool.submit(_task_report, scene, task, policy, options or {}, build, run): i
+            pool.submit(_task_report, scene, task, policy, options or {}, spec): i
             for i, task in enumerate(tasks)
         }
         reports: dict[int, EvalReport] = {}
@@ -178,7 +159,7 @@ def _suite_in_processes(
                 future.cancel()
             raise
     wall = time.perf_counter() - start
-    merged = merge_reports([reports[i] for i in range(len(tasks))], suite, policy, run["command"])
+    merged = merge_reports([reports[i] for i in range(len(tasks))], suite, policy, spec.command)
     n = merged.n_episodes
     steps = merged.env_steps_per_s * merged.run_s
     return dataclasses.replace(

@@ -17,13 +17,13 @@ import dataclasses
 import datetime as dt
 import itertools
 from collections.abc import Callable, Sequence
-from typing import Any
 
 import numpy as np
 
 from openral_mjx.core.errors import ConfigError
 from openral_mjx.evaluation.provenance import device_description, package_versions
-from openral_mjx.evaluation.run import run_evaluation
+from openral_mjx.evaluation.run import evaluate_spec
+from openral_mjx.evaluation.spec import RunSpec
 from openral_mjx.policies import Policy, make_policy
 from openral_mjx.report.sweep import SweepPoint, SweepReport, SweepStep
 from openral_mjx.scenes import Scene
@@ -68,20 +68,18 @@ def run_sweep(
     scene: Scene,
     policy: str | Policy,
     sweep: str,
+    spec: RunSpec,
     *,
     randomize: Sequence[FactorRange] = (),
     alpha: float = 0.05,
     on_point: Callable[[int, int, float], None] | None = None,
-    command: str = "",
-    **run: Any,
+    on_chunk: Callable[[int, int, int], None] | None = None,
 ) -> SweepReport:
-    """Run `policy` on the same seeds at each value of `sweep` (``NAME=LOW:HIGH:N``).
-
-    `run` takes `run_evaluation`'s keyword arguments (n_envs, n_episodes, seed, max_steps,
-    batching, on_chunk, ...), except a sequential target: every point runs the same seeds.
+    """Run `policy` on the same seeds at each value of `sweep` (``NAME=LOW:HIGH:N``), each
+    point as `spec` says, except a sequential target: every point runs the same seeds.
     `on_point(i, n, value)` is called before each point.
     """
-    if run.get("target_halfwidth") is not None:
+    if spec.target_halfwidth is not None:
         raise ConfigError("--sweep runs the same seeds at every point: drop --target-halfwidth")
     if not 0 < alpha < 1:
         raise ConfigError(f"alpha must be in (0, 1), got {alpha}")
@@ -105,7 +103,7 @@ def run_sweep(
                 on_point(i, len(values), value)
             fixed = dataclasses.replace(factor, low=value, high=value)
             point_scene = Randomized(scene, [*randomize, fixed])
-            with run_evaluation(point_scene, pol, command=command, **run) as ev:
+            with evaluate_spec(point_scene, pol, spec, on_chunk=on_chunk) as ev:
                 success = np.asarray(ev.arrays["success"], bool)
                 r = ev.report
             outcomes.append(success)
@@ -142,7 +140,7 @@ def run_sweep(
         steps=sweep_steps(outcomes, values, alpha),
         compile_s=sum(r.compile_s for r in reports),
         run_s=sum(r.run_s for r in reports),
-        command=command,
+        command=spec.command,
         created_at=dt.datetime.now(dt.UTC).isoformat(timespec="seconds"),
         versions=package_versions(),
     )

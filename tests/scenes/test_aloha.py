@@ -15,6 +15,7 @@ from worker_envs import require_worker_envs
 
 from openral_mjx.core.errors import ConfigError
 from openral_mjx.evaluation import evaluate
+from openral_mjx.evaluation.spec import RunSpec
 from openral_mjx.evaluation.suite import evaluate_suite
 from openral_mjx.host import envs
 from openral_mjx.host.pool import _shim_dir
@@ -103,7 +104,8 @@ def test_random_policy_report_carries_the_resets_factors_and_divergence():
 def test_suite_of_both_tasks_with_per_task_rows():
     """`--suite all`: both tasks in turn, a row each, each episode with its task's factors."""
     options = {"image_height": 0, "image_width": 0, "n_workers": 1}
-    report = evaluate_suite("aloha", "all", "random", n_envs=2, max_steps=3, options=options)
+    spec = RunSpec(n_envs=2, max_steps=3)
+    report = evaluate_suite("aloha", "all", "random", spec, options=options)
     assert [r.task for r in report.per_task] == list(al.TASKS)
     assert all(r.n_episodes == 2 for r in report.per_task) and report.n_episodes == 4
     names = [set(e.metadata["factors"]) for e in report.episodes]

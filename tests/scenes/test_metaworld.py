@@ -17,6 +17,7 @@ from worker_envs import require_worker_envs
 from openral_mjx.core.errors import ConfigError
 from openral_mjx.eval import _listing
 from openral_mjx.evaluation import evaluate
+from openral_mjx.evaluation.spec import RunSpec
 from openral_mjx.evaluation.suite import evaluate_suite
 from openral_mjx.host import envs
 from openral_mjx.host.batch import BatchConfig, EnvBatch
@@ -96,9 +97,8 @@ def test_expert_succeeds_in_a_suite_with_per_task_rows_and_factors(monkeypatch):
     which runs in the env workers: every episode succeeds, each task gets its row, and every
     episode carries its object and goal position as factors."""
     monkeypatch.setitem(mw.SUITES, "pair", ("reach-v3", "push-v3"))
-    report = evaluate_suite(
-        "metaworld", "pair", "metaworld-expert", n_envs=4, n_episodes=4, max_steps=150
-    )
+    spec = RunSpec(n_envs=4, n_episodes=4, max_steps=150)
+    report = evaluate_suite("metaworld", "pair", "metaworld-expert", spec)
     assert [r.task for r in report.per_task] == ["reach-v3", "push-v3"]
     assert all(r.successes == r.n_episodes == 4 for r in report.per_task)
     assert report.backend == "host" and report.success_rate == 1.0
@@ -198,6 +198,8 @@ def test_camera_observation_is_lerobots(python):
 def test_mt10_expert(tmp_path):
     """MetaWorld's MT10 with its scripted expert, 10 seeds per task (see BENCHMARKS.md for
     all 50 tasks at 200 seeds)."""
-    report = evaluate_suite("metaworld", "mt10", "metaworld-expert", n_envs=10, n_episodes=10)
+    report = evaluate_suite(
+        "metaworld", "mt10", "metaworld-expert", RunSpec(n_envs=10, n_episodes=10)
+    )
     assert [r.task for r in report.per_task] == list(mw.MT10)
     assert report.success_rate >= 0.9

@@ -269,7 +269,7 @@ def test_suite_plays_each_tasks_own_expert_alone_or_in_processes(monkeypatch):
     """A suite on the mirror builds MetaWorld's expert for each task (it is bound to one: the
     pick-place expert, not reach's), and `task_processes` runs the same episodes: each task's
     seeds equal a run of that task alone."""
-    from openral_mjx.evaluation import build_scene, evaluate
+    from openral_mjx.evaluation import RunSpec, build_scene, evaluate
     from openral_mjx.evaluation import suite as suite_module
 
     tasks = ["reach-v3", "pick-place-v3"]  # reach's expert fails pick-place on these seeds
@@ -282,8 +282,10 @@ def test_suite_plays_each_tasks_own_expert_alone_or_in_processes(monkeypatch):
         ]
 
     args = ("metaworld_mjx", "mt10", "metaworld-expert")
-    in_turn = suite_module.evaluate_suite(*args, backend="c", threads=2, **run)
-    together = suite_module.evaluate_suite(*args, backend="c", threads=1, task_processes=2, **run)
+    in_turn = suite_module.evaluate_suite(*args, RunSpec(backend="c", threads=2, **run))
+    together = suite_module.evaluate_suite(
+        *args, RunSpec(backend="c", threads=1, **run), task_processes=2
+    )
     scene = build_scene("metaworld_mjx", {"task": "pick-place-v3"}, backend="c", n_envs=2)
     with contextlib.closing(scene):
         alone = evaluate(scene, "metaworld-expert", **run)

@@ -19,6 +19,7 @@ import pytest
 
 from openral_mjx.core.errors import ConfigError
 from openral_mjx.evaluation import build_scene
+from openral_mjx.evaluation.spec import RunSpec
 from openral_mjx.evaluation.sweep import run_sweep
 from openral_mjx.report.sweep import load_sweep, save_sweep
 from openral_mjx.scenes.factor_ranges import FactorRange, grid_values, parse_factor, parse_factors
@@ -250,9 +251,8 @@ def test_depth_noise_and_dropout():
 def test_sweep_delay_drops_the_push_expert(push, tmp_path):
     """The push expert steers by the cube's current pose: 12 control steps (0.6 s) of action
     delay ruin it, on the same 24 seeds that succeed without delay."""
-    report = run_sweep(
-        push, "scripted", "delay=0:12:2", n_envs=24, n_episodes=24, seed=0, batching="chunks"
-    )
+    spec = RunSpec(n_envs=24, n_episodes=24, seed=0, batching="chunks")
+    report = run_sweep(push, "scripted", "delay=0:12:2", spec)
     nominal, delayed = report.points
     assert nominal.success_rate >= 0.8
     assert delayed.success_rate <= nominal.success_rate - 0.4

@@ -26,7 +26,7 @@ from openral_mjx.runner.episode import seed_keys
 from openral_mjx.scenes import make_scene, scene_options, scene_suite
 
 # the module (the package's `metaworld` attribute is the scene's constructor)
-mw = importlib.import_module("openral_mjx.scenes.metaworld")
+mw = importlib.import_module("openral_mjx.benchmarks.metaworld.host_scene")
 
 ENV = "metaworld"
 require_worker_envs(ENV)
@@ -44,7 +44,7 @@ def test_task_lists_are_metaworlds(python):
     """The scene's task and suite lists (the evaluator cannot import metaworld) are the
     installed MetaWorld's, in its order."""
     script = (
-        "import json; from openral_mjx.host.metaworld_env import suites, task_names; "
+        "import json; from openral_mjx.benchmarks.metaworld.worker_env import suites, task_names; "
         "print(json.dumps({'tasks': task_names(), **suites()}))"
     )
     env = {**os.environ, "PYTHONPATH": _shim_dir()}

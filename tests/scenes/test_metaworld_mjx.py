@@ -13,12 +13,12 @@ import numpy as np
 import pytest
 from worker_envs import require_worker_envs
 
+from openral_mjx.benchmarks.metaworld import agreement
+from openral_mjx.benchmarks.metaworld.host_scene import TASKS as METAWORLD_TASKS
+from openral_mjx.benchmarks.metaworld.mirror.tasks import TASKS
 from openral_mjx.core.errors import ConfigError
-from openral_mjx.evaluation import metaworld_agreement as agreement
 from openral_mjx.physics import PhysicsSettings
 from openral_mjx.scenes import make_scene, scene_suite
-from openral_mjx.scenes.metaworld import TASKS as METAWORLD_TASKS
-from openral_mjx.scenes.metaworld_mjx.tasks import TASKS
 
 ENV = "metaworld"
 require_worker_envs(ENV)
@@ -82,7 +82,7 @@ def test_box_close_reset_steps_after_moving_the_box():
     velocity zeroed, its orientation kept. The mirror's reset state matches it."""
     import mujoco
 
-    from openral_mjx.scenes.metaworld_mjx import task as mw
+    from openral_mjx.benchmarks.metaworld.mirror import task as mw
 
     scene = make_scene("metaworld_mjx", {"task": "box-close-v3"}, backend="c")
     assert TASKS["box-close-v3"].settle_steps == 1
@@ -175,8 +175,8 @@ def test_mjx_model_observes_metaworlds_frames():
     MuJoCo C's orientation of the prism, turned by the scene's offset, is the cylinder's."""
     import mujoco
 
+    from openral_mjx.benchmarks.metaworld.mirror.assets import load_spec
     from openral_mjx.scenes.composition import quat_mul
-    from openral_mjx.scenes.metaworld_mjx.assets import load_spec
 
     scene = make_scene("metaworld_mjx", {"task": "reach-wall-v3"}, backend="mjx")
     assert scene.mjx_changes == {

@@ -17,10 +17,10 @@ import pytest
 from worker_envs import require_worker_envs
 
 from openral_mjx import finetune
-from openral_mjx.evaluation import metaworld_agreement as agreement
+from openral_mjx.benchmarks.metaworld import agreement
+from openral_mjx.benchmarks.metaworld.mirror.tasks import TASKS, rewarded_tasks
 from openral_mjx.physics import PhysicsSettings
 from openral_mjx.scenes import make_scene
-from openral_mjx.scenes.metaworld_mjx.tasks import TASKS, rewarded_tasks
 
 ENV = "metaworld"
 require_worker_envs(ENV)

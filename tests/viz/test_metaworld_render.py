@@ -1,5 +1,5 @@
 """The MetaWorld mirror's camera images on `warp` (MuJoCo-Warp's renderer, CPU mode) against
-MuJoCo's own OpenGL renderer on the same state (`viz.metaworld_render`; README has the
+MuJoCo's own OpenGL renderer on the same state (`benchmarks.metaworld.render`; README has the
 table for every camera), and the pixel options' errors. Needs MetaWorld's worker environment
 (its XML) and, for the agreement, headless OpenGL (EGL or OSMesa)."""
 
@@ -11,11 +11,11 @@ import numpy as np
 import pytest
 from worker_envs import require_worker_envs
 
+from openral_mjx.benchmarks.metaworld import render
 from openral_mjx.core.errors import ConfigError
 from openral_mjx.physics import PhysicsSettings
 from openral_mjx.runner.episode import seed_keys
 from openral_mjx.scenes import make_scene
-from openral_mjx.viz import metaworld_render as render
 from openral_mjx.viz.gl import GLUnavailable, gl_backend
 
 require_worker_envs("metaworld")

@@ -79,7 +79,7 @@ json.dump(d, open(sys.argv[2], 'w'), indent=1)" /tmp/mw_suite.json "$out/mw_suit
                  # episode (slowest) go first, one per lane.
     export JAX_PLATFORMS=cpu; d=${MJX_DIR:-/tmp/mjxcheck}; mkdir -p "$d"
     tasks=(${TASKS:-$(python3 -c "from openral_mjx.scenes import scene_suite as s
-from openral_mjx.scenes.metaworld_mjx.tasks import TASKS as T
+from openral_mjx.benchmarks.metaworld.mirror.tasks import TASKS as T
 ts = s('metaworld_mjx', '${SUITE:-mt50}'); print(*sorted(ts, key=lambda t: not T[t].hand_reset_per_episode))")})
     P=${PROCS:-16}
     for i in $(seq 0 $((P - 1))); do
@@ -91,7 +91,7 @@ ts = s('metaworld_mjx', '${SUITE:-mt50}'); print(*sorted(ts, key=lambda t: not T
     done
     wait; cat "$d"/mjx_check_*.jsonl | wc -l ;;
   mw-agree)    # issue 20: the mirror on the GPU against MetaWorld on the CPU, same seeds
-    python3 -m openral_mjx.evaluation.metaworld_agreement --tasks ${TASKS:-reach-v3 push-v3 \
+    python3 -m openral_mjx.benchmarks.metaworld.agreement --tasks ${TASKS:-reach-v3 push-v3 \
       pick-place-v3 door-open-v3 drawer-close-v3} --backend ${BACKEND:-warp} --seeds 500 \
       --traj-seeds 8 --workers "$(nproc)" --out "$out/metaworld_agreement_gpu.json" ;;
   mw-agree-c)  # issue 20: the agreement table on `c` on this machine's CPU cores, SUITE (mt50)
@@ -105,7 +105,7 @@ ts = s('metaworld_mjx', '${SUITE:-mt50}'); print(*sorted(ts, key=lambda t: not T
       ( for ((j = i; j < ${#tasks[@]}; j += P)); do
           t=${tasks[j]}; [ -f "$d/$t.json" ] && continue
           taskset -c $((i * per))-$((i * per + per - 1)) python3 -m \
-            openral_mjx.evaluation.metaworld_agreement --tasks "$t" --backend c --seeds ${SEEDS:-500} \
+            openral_mjx.benchmarks.metaworld.agreement --tasks "$t" --backend c --seeds ${SEEDS:-500} \
             --traj-seeds 4 --workers "$per" --engine ${ENGINE:-metaworld} --out "$d/$t.json" \
             >> "$d/log_$i.txt" 2>&1
         done ) &

@@ -50,7 +50,13 @@ from openral_mjx.scenes import make_scene
 # resets per run: the episode's, plus one for the factors where the scene has them)
 SCENES = {
     "libero": ("lerobot-libero", "openral_mjx.host.libero_env:LiberoEnv", 7, {}, 1),
-    "metaworld": ("metaworld", "openral_mjx.host.metaworld_env:make", 4, {"expert": False}, 2),
+    "metaworld": (
+        "metaworld",
+        "openral_mjx.benchmarks.metaworld.worker_env:make",
+        4,
+        {"expert": False},
+        2,
+    ),
     "pusht": ("gym-envs", "openral_mjx.host.pusht_env:make", 2, {}, 2),
     "aloha": ("gym-envs", "openral_mjx.host.aloha_env:make", 14, {}, 2),
     "maniskill": ("maniskill", "openral_mjx.host.maniskill_env:make", 8, {}, 2),

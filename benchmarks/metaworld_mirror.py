@@ -45,6 +45,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from openral_mjx.benchmarks.metaworld.mirror import task as mw
 from openral_mjx.evaluation import build_scene, run_evaluation
 from openral_mjx.evaluation.suite import mps_running
 from openral_mjx.policies.mlp import MlpConfig, init_params, mlp_policy, save_mlp
@@ -52,7 +53,6 @@ from openral_mjx.runner import run_seeds
 from openral_mjx.runner.compile_cache import enable_compilation_cache
 from openral_mjx.runner.episode import seed_keys
 from openral_mjx.scenes import scene_suite
-from openral_mjx.scenes.metaworld_mjx import task as mw
 
 HIDDEN = (256, 256, 256)
 
@@ -88,8 +88,8 @@ def save_random_mlp(args: argparse.Namespace) -> None:
 
 def observe_poses_before_step() -> None:
     """The mirror built from here on reads the poses `mj_step` leaves (see module doc)."""
+    from openral_mjx.benchmarks.metaworld.mirror import scene
     from openral_mjx.physics import QuantitySpec
-    from openral_mjx.scenes.metaworld_mjx import scene
 
     def spec(*args, **kwargs) -> QuantitySpec:
         return QuantitySpec(*args, **{**kwargs, "poses_after_step": False})
@@ -197,7 +197,7 @@ def host(args: argparse.Namespace) -> None:
 def host_direct(args: argparse.Namespace) -> None:
     """MetaWorld alone: whole episodes inside `--workers` worker processes (no per-step
     exchange with the evaluator), random actions, 500 steps: the simulator's own speed."""
-    from openral_mjx.evaluation.metaworld_agreement import host_rollouts, host_workers
+    from openral_mjx.benchmarks.metaworld.agreement import host_rollouts, host_workers
 
     rng = np.random.default_rng(0)
     for task in tasks_of(args.tasks):

@@ -17,7 +17,6 @@ from openral_mjx.core.registry import Registry
 from openral_mjx.policies.base import Policy
 from openral_mjx.policies.depth_cnn import depth_cnn_policy
 from openral_mjx.policies.lerobot import lerobot_policy
-from openral_mjx.policies.metaworld_expert import metaworld_expert
 from openral_mjx.policies.mlp import check_compatible, load_mlp, mlp_policy
 from openral_mjx.policies.simple import random_policy, zero_policy
 from openral_mjx.policies.torch_policy import torch_policy
@@ -79,7 +78,10 @@ def _depth_cnn(scene: Any, arg: str | None) -> Policy:
 
 POLICIES.register("lerobot")(lerobot_policy)
 POLICIES.register("torch")(torch_policy)
-POLICIES.register("metaworld-expert")(metaworld_expert)
+# a benchmark folder's expert imports this package: registered by reference
+POLICIES.register_lazy(
+    "metaworld-expert", "openral_mjx.benchmarks.metaworld.expert:metaworld_expert"
+)
 
 
 def make_policy(spec: str, scene: Any) -> Policy:

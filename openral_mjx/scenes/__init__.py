@@ -16,9 +16,6 @@ from openral_mjx.scenes.aloha import suite_tasks as aloha_suite_tasks
 from openral_mjx.scenes.base import Scene, State
 from openral_mjx.scenes.libero import LiberoOptions, libero, suite_tasks
 from openral_mjx.scenes.maniskill import ManiSkillOptions, maniskill
-from openral_mjx.scenes.metaworld import MetaWorldOptions, metaworld
-from openral_mjx.scenes.metaworld import suite_tasks as metaworld_suite_tasks
-from openral_mjx.scenes.metaworld_mjx import MetaWorldMjx, MetaWorldMjxOptions
 from openral_mjx.scenes.point_reach import PointReachOptions, point_reach
 from openral_mjx.scenes.pusht import PushTOptions, pusht
 from openral_mjx.scenes.robosuite_scene import RobosuiteOptions, robosuite
@@ -71,25 +68,10 @@ SCENES.register("robosuite")(
         RobosuiteOptions, robosuite, "panda", backends=("host",), worker_env="lerobot-libero"
     )
 )
-SCENES.register("metaworld")(
-    SceneEntry(
-        MetaWorldOptions,
-        metaworld,
-        "sawyer",
-        backends=("host",),
-        suites=metaworld_suite_tasks,
-        worker_env="metaworld",
-    )
-)
-SCENES.register("metaworld_mjx")(
-    SceneEntry(
-        MetaWorldMjxOptions,
-        MetaWorldMjx,
-        "sawyer",
-        suites=metaworld_suite_tasks,
-        worker_env="metaworld",  # the mirror compiles MetaWorld's own model files
-    )
-)
+# Public benchmarks' scenes live in their folders (`openral_mjx.benchmarks.<name>`), each
+# module's `SCENE` its entry; they import this package, so they are registered by reference.
+SCENES.register_lazy("metaworld", "openral_mjx.benchmarks.metaworld.host_scene:SCENE")
+SCENES.register_lazy("metaworld_mjx", "openral_mjx.benchmarks.metaworld.mirror:SCENE")
 SCENES.register("pusht")(
     SceneEntry(PushTOptions, pusht, "pusht_agent", backends=("host",), worker_env="gym-envs")
 )

@@ -9,8 +9,8 @@ import mujoco
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from openral_mjx.benchmarks.metaworld.mirror.task import matrix_quat
 from openral_mjx.physics.base import mat_to_quat
-from openral_mjx.scenes.metaworld_mjx.task import matrix_quat
 
 
 def rotations() -> np.ndarray:

@@ -14,6 +14,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
+from openral_mjx.benchmarks.metaworld.mirror.tasks import TASKS as MIRROR_TASKS
 from openral_mjx.evaluation.suite import merge_reports
 from openral_mjx.host import envs
 from openral_mjx.physics import PhysicsSettings
@@ -21,10 +22,9 @@ from openral_mjx.policies.lerobot import LerobotClient
 from openral_mjx.report import EvalReport
 from openral_mjx.scenes import SCENES, Scene, make_scene, scene_options
 from openral_mjx.scenes.libero_instructions import INSTRUCTIONS as LIBERO
-from openral_mjx.scenes.metaworld_mjx.tasks import TASKS as MIRROR_TASKS
 
 # the modules (the package binds these names to the scenes' constructors)
-mw = importlib.import_module("openral_mjx.scenes.metaworld")
+mw = importlib.import_module("openral_mjx.benchmarks.metaworld.host_scene")
 libero = importlib.import_module("openral_mjx.scenes.libero")
 aloha = importlib.import_module("openral_mjx.scenes.aloha")
 pusht = importlib.import_module("openral_mjx.scenes.pusht")

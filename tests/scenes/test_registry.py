@@ -74,3 +74,22 @@ def test_scene_resets_and_steps(name, backend):
             assert sum(size for _, size in scene.obs_layout.values()) == scene.observation_size
     finally:
         scene.close()
+
+
+def test_lazy_entries_resolve_on_first_get():
+    """A benchmark folder's scene is registered by reference ("module:attribute"): listed at
+    once, imported on its first `get`, and a second registration of its name is refused."""
+    from openral_mjx.core.errors import ConfigError
+    from openral_mjx.core.registry import Registry
+
+    reg: Registry[object] = Registry("thing")
+    reg.register_lazy("sqrt", "math:sqrt")
+    assert reg.names() == ["sqrt"] and "sqrt" in reg
+    assert reg.get("sqrt")(4.0) == 2.0
+    with pytest.raises(KeyError, match="registered twice"):
+        reg.register("sqrt")(abs)
+    with pytest.raises(ValueError, match="not 'module:attribute'"):
+        reg.register_lazy("cos", "math.cos")
+    with pytest.raises(ConfigError, match="unknown thing 'nope'"):
+        reg.get("nope")
+    assert SCENES.get("metaworld_mjx").worker_env == "metaworld"  # a lazy entry, resolved

@@ -288,57 +288,5 @@ class PhysicsBackend(abc.ABC):
         return {"name": self.name, "n_substeps": self.n_substeps}
 
 
-def mat_to_quat(mat: jax.Array) -> jax.Array:
-    """Rotation matrices (..., 3, 3) -> unit quaternions (..., 4), w-x-y-z with w >= 0 (MuJoCo's
-    `mju_mat2Quat` convention; Shepperd's method, stable for every rotation)."""
-    r = mat
-    trace = r[..., 0, 0] + r[..., 1, 1] + r[..., 2, 2]
-    candidates = jnp.stack(
-        [
-            jnp.stack(
-                [
-                    1 + trace,
-                    r[..., 2, 1] - r[..., 1, 2],
-                    r[..., 0, 2] - r[..., 2, 0],
-                    r[..., 1, 0] - r[..., 0, 1],
-                ],
-                -1,
-            ),
-            jnp.stack(
-                [
-                    r[..., 2, 1] - r[..., 1, 2],
-                    1 + r[..., 0, 0] - r[..., 1, 1] - r[..., 2, 2],
-                    r[..., 0, 1] + r[..., 1, 0],
-                    r[..., 0, 2] + r[..., 2, 0],
-                ],
-                -1,
-            ),
-            jnp.stack(
-                [
-                    r[..., 0, 2] - r[..., 2, 0],
-                    r[..., 0, 1] + r[..., 1, 0],
-                    1 - r[..., 0, 0] + r[..., 1, 1] - r[..., 2, 2],
-                    r[..., 1, 2] + r[..., 2, 1],
-                ],
-                -1,
-            ),
-            jnp.stack(
-                [
-                    r[..., 1, 0] - r[..., 0, 1],
-                    r[..., 0, 2] + r[..., 2, 0],
-                    r[..., 1, 2] + r[..., 2, 1],
-                    1 - r[..., 0, 0] - r[..., 1, 1] + r[..., 2, 2],
-                ],
-                -1,
-            ),
-        ],
-        -2,
-    )
-    pick = jnp.argmax(jnp.stack([trace, r[..., 0, 0], r[..., 1, 1], r[..., 2, 2]], -1), axis=-1)
-    q = jnp.take_along_axis(candidates, pick[..., None, None], axis=-2)[..., 0, :]
-    q = q / jnp.linalg.norm(q, axis=-1, keepdims=True)
-    return jnp.where(q[..., :1] < 0, -q, q)
-
-
 def all_finite(*arrays: jax.Array) -> jax.Array:
     return jnp.all(jnp.stack([jnp.all(jnp.isfinite(a)) for a in arrays]))

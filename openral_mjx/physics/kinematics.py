@@ -18,12 +18,7 @@ import mujoco
 import numpy as np
 
 from openral_mjx.core import fixed_order as fo
-
-
-def _quat_to_mat(q: np.ndarray) -> np.ndarray:
-    m = np.zeros(9)
-    mujoco.mju_quat2Mat(m, np.asarray(q, float))
-    return m.reshape(3, 3)
+from openral_mjx.core.rotations import quat_to_mat_np
 
 
 def _axis_angle(axis: np.ndarray, angle: jax.Array) -> jax.Array:
@@ -78,9 +73,9 @@ def site_kinematics(
                     np.array(model.jnt_axis[j]),
                 )
             )
-        steps.append((np.array(model.body_pos[b]), _quat_to_mat(model.body_quat[b]), joints))
+        steps.append((np.array(model.body_pos[b]), quat_to_mat_np(model.body_quat[b]), joints))
     site_pos = np.array(model.site_pos[site])
-    site_rot = _quat_to_mat(model.site_quat[site])
+    site_rot = quat_to_mat_np(model.site_quat[site])
     hinge = int(mujoco.mjtJoint.mjJNT_HINGE)
 
     def fk(q: jax.Array) -> tuple[jax.Array, jax.Array, jax.Array, jax.Array]:

@@ -25,13 +25,13 @@ with contextlib.redirect_stdout(io.StringIO()):
     from mujoco import mjx
 
 from openral_mjx.core.errors import ConfigError
+from openral_mjx.core.rotations import mat_to_quat
 from openral_mjx.physics.base import (
     PhysicsBackend,
     PhysicsState,
     Quantities,
     all_finite,
     check_fields,
-    mat_to_quat,
 )
 
 _CAP = "max_contact_points"

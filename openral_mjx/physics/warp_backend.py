@@ -19,6 +19,7 @@ import mujoco
 import numpy as np
 
 from openral_mjx.core.errors import ConfigError
+from openral_mjx.core.rotations import quat_to_mat
 from openral_mjx.physics.base import Quantities, all_finite
 from openral_mjx.physics.cameras import SensorSpec, sensor_key
 from openral_mjx.physics.mjx_backend import MjxBackend, mjx
@@ -118,7 +119,7 @@ class WarpBackend(MjxBackend):
         b = jnp.asarray(self.mj_model.geom_bodyid[g])
         xmat = d.xmat[b]
         pos = d.xpos[b] + jnp.einsum("gij,gj->gi", xmat, mx.geom_pos[g])
-        local = jax.vmap(_quat_to_mat)(mx.geom_quat[g])
+        local = jax.vmap(quat_to_mat)(mx.geom_quat[g])
         return d.replace(
             geom_xpos=d.geom_xpos.at[g].set(pos),
             geom_xmat=d.geom_xmat.at[g].set(jnp.einsum("gij,gjk->gik", xmat, local)),
@@ -169,15 +170,3 @@ class WarpBackend(MjxBackend):
             "njmax": self.njmax,
             "batch_size": self.settings.batch_size,
         }
-
-
-def _quat_to_mat(q: jax.Array) -> jax.Array:
-    """A unit quaternion (w, x, y, z) as a rotation matrix."""
-    w, x, y, z = q[0], q[1], q[2], q[3]
-    return jnp.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-        ]
-    )

@@ -30,11 +30,12 @@ import mujoco
 import numpy as np
 
 from openral_mjx.core.errors import ConfigError, unknown
+from openral_mjx.core.rotations import quat_to_mat
 from openral_mjx.physics.base import camera_local
 from openral_mjx.physics.cameras import RgbSpec, RgbStyle
 from openral_mjx.physics.mjx_backend import mjx
 from openral_mjx.raycast import DepthSpec
-from openral_mjx.raycast.geoms import mat_vec, quat_to_mat
+from openral_mjx.raycast.geoms import mat_vec
 from openral_mjx.raycast.mount import Mount, camera, moved
 
 # Per-env model fields the renderer reads (from `PhysicsState.fields`); the others it reads

@@ -31,6 +31,7 @@ import jax
 import jax.numpy as jnp
 
 from openral_mjx.core import fixed_order as fo
+from openral_mjx.core.rotations import quat_axis_z
 from openral_mjx.policies.base import Policy
 
 # q -> (site position, site rotation matrix, jacp (3, n), jacr (3, n)), world frame.
@@ -42,11 +43,6 @@ APPROACH, OPEN, SLIDE, CLOSE, LIFT, CARRY, ALIGN, INSERT = range(8)
 def _limit(v: jax.Array, max_norm: float) -> jax.Array:
     """`v` scaled down to at most `max_norm` long."""
     return v * jnp.minimum(1.0, max_norm / (fo.norm(v) + 1e-9))
-
-
-def _quat_axis_z(quat: jax.Array) -> jax.Array:
-    w, x, y, z = quat[0], quat[1], quat[2], quat[3]
-    return jnp.stack([2 * (x * z + w * y), 2 * (y * z - w * x), 1 - 2 * (x * x + y * y)])
 
 
 def insert_expert(
@@ -110,7 +106,7 @@ def insert_expert(
         phase, timer = pstate
         q = part(obs, "joint_pos")
         tube, block = part(obs, "tube_pos"), part(obs, "block_pos")
-        axis = _quat_axis_z(part(obs, "tube_quat"))
+        axis = quat_axis_z(part(obs, "tube_quat"))
         axis = jnp.where(axis[2] < 0, -axis, axis)  # the tube is symmetric: take the upper end
         lower = tube - axis * (tube_length / 2)
         hole_xy, top_z = block[:2], block[2] + block_height / 2

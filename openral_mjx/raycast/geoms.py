@@ -23,6 +23,7 @@ import mujoco
 import numpy as np
 
 from openral_mjx.core.errors import ConfigError
+from openral_mjx.core.rotations import quat_to_mat, quat_to_mat_np
 from openral_mjx.raycast import primitives as prim
 
 _T = mujoco.mjtGeom
@@ -37,17 +38,6 @@ _SUPPORTED: dict[int, Callable] = {
 _SPHERE = int(_T.mjGEOM_SPHERE)
 ALL_GROUPS = tuple(range(mujoco.mjNGROUP))
 VISIBLE_GROUPS = (0, 1, 2)  # what MuJoCo and MuJoCo-Warp render by default
-
-
-def quat_to_mat(q: jax.Array) -> jax.Array:
-    """Rotation matrices (..., 3, 3) of unit quaternions (..., 4), w-x-y-z (MuJoCo's order)."""
-    w, x, y, z = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
-    rows = [
-        [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-        [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-        [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-    ]
-    return jnp.stack([jnp.stack(r, axis=-1) for r in rows], axis=-2)
 
 
 def mat_vec(m: jax.Array, v: jax.Array) -> jax.Array:
@@ -189,7 +179,7 @@ class GeomSet:
                 continue
             body = model.geom_bodyid[ids].astype(np.int64)
             pos = model.geom_pos[ids].copy()
-            rot = np.stack([_quat_mat(q) for q in model.geom_quat[ids]])
+            rot = np.stack([quat_to_mat_np(q) for q in model.geom_quat[ids]])
             static = np.array([is_static(model, int(b)) for b in body])
             pos[static] = data.geom_xpos[ids[static]]
             rot[static] = data.geom_xmat[ids[static]].reshape(-1, 3, 3)
@@ -312,9 +302,3 @@ def _lin(row: jax.Array, dirs: np.ndarray) -> jax.Array:
     if out is None:
         return jnp.zeros((dirs.shape[0], *row.shape[:-1]), row.dtype)
     return out
-
-
-def _quat_mat(q: np.ndarray) -> np.ndarray:
-    m = np.zeros(9)
-    mujoco.mju_quat2Mat(m, np.asarray(q, np.float64))
-    return m.reshape(3, 3)

@@ -10,7 +10,8 @@ import mujoco
 import numpy as np
 
 from openral_mjx.core.errors import ConfigError
-from openral_mjx.raycast.geoms import is_static, mat_mat, mat_vec, quat_to_mat, rest_data
+from openral_mjx.core.rotations import quat_to_mat
+from openral_mjx.raycast.geoms import is_static, mat_mat, mat_vec, rest_data
 
 
 @dataclasses.dataclass(frozen=True)

@@ -226,21 +226,6 @@ def cylinders_as_prisms(spec: mujoco.MjSpec, sides: int = 16) -> int:
     return changed
 
 
-def quat_mul(a: jax.Array, b: jax.Array) -> jax.Array:
-    """Hamilton products a * b of w-x-y-z quaternions (..., 4)."""
-    aw, ax, ay, az = (a[..., i] for i in range(4))
-    bw, bx, by, bz = (b[..., i] for i in range(4))
-    return jnp.stack(
-        [
-            aw * bw - ax * bx - ay * by - az * bz,
-            aw * bx + ax * bw + ay * bz - az * by,
-            aw * by - ax * bz + ay * bw + az * bx,
-            aw * bz + ax * by - ay * bx + az * bw,
-        ],
-        axis=-1,
-    )
-
-
 def geom_frame_offsets(
     before: mujoco.MjModel, after: mujoco.MjModel, geoms: Sequence[int]
 ) -> np.ndarray:

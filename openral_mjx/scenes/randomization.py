@@ -37,8 +37,8 @@ import mujoco
 import numpy as np
 
 from openral_mjx.core.errors import ConfigError
+from openral_mjx.core.rotations import quat_mul
 from openral_mjx.scenes.base import RandomizationTargets, Scene, State
-from openral_mjx.scenes.composition import quat_mul
 from openral_mjx.scenes.factor_ranges import (
     FACTORS,
     MAX_DELAY,

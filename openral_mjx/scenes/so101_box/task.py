@@ -13,6 +13,7 @@ import jax
 import jax.numpy as jnp
 
 from openral_mjx.core import fixed_order as fo
+from openral_mjx.core.rotations import quat_axis_z, rotate_inverse
 from openral_mjx.physics import Quantities, QuantitySpec
 from openral_mjx.physics.cameras import SensorSpec
 from openral_mjx.scenes.so101_box.options import Pair, So101BoxOptions
@@ -70,24 +71,6 @@ def sample_layout(o: So101BoxOptions, key: jax.Array) -> tuple[jax.Array, jax.Ar
     return block, tube
 
 
-def _axis_z(quat: jax.Array) -> jax.Array:
-    """The body's local +z axis in the world frame, from its quaternion (w, x, y, z)."""
-    w, x, y, z = quat[0], quat[1], quat[2], quat[3]
-    return jnp.stack([2 * (x * z + w * y), 2 * (y * z - w * x), 1 - 2 * (x * x + y * y)])
-
-
-def _rotate_inverse(quat: jax.Array, v: jax.Array) -> jax.Array:
-    """`v` (world) in the frame of the body with quaternion `quat`: R^T v, fixed order."""
-    w, x, y, z = quat[0], quat[1], quat[2], quat[3]
-    rows = [
-        [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-        [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-        [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-    ]
-    # R^T v: column j of R dotted with v.
-    return jnp.stack([rows[0][j] * v[0] + rows[1][j] * v[1] + rows[2][j] * v[2] for j in range(3)])
-
-
 def insertion(o: So101BoxOptions, q: Quantities) -> dict[str, jax.Array]:
     """The success predicate and its terms on one env's `Quantities`.
 
@@ -100,7 +83,7 @@ def insertion(o: So101BoxOptions, q: Quantities) -> dict[str, jax.Array]:
     lower = jnp.where(end_a[2] <= end_b[2], end_a, end_b)
     axis = end_b - end_a
     cos_tilt = jnp.abs(axis[2]) / jnp.maximum(fo.norm(axis), 1e-9)
-    local = _rotate_inverse(q.body_quat[BLOCK], lower - q.body_pos[BLOCK])
+    local = rotate_inverse(q.body_quat[BLOCK], lower - q.body_pos[BLOCK])
     depth = o.block_size[2] / 2 - local[2]
     hole_offset = fo.norm(local[:2])
     success = (
@@ -121,7 +104,7 @@ def reward(o: So101BoxOptions, q: Quantities, lower: jax.Array, success: jax.Arr
     """Dense reward: ``-0.5 |grasp - tube| - |lower end - hole axis at insertion depth| +
     1[success]``, with `lower` the tube's lower end from `insertion`."""
     tube_pos, block_pos, block_quat = q.body_pos[TUBE], q.body_pos[BLOCK], q.body_quat[BLOCK]
-    target = block_pos + _axis_z(block_quat) * (o.block_size[2] / 2 - o.insertion_depth)
+    target = block_pos + quat_axis_z(block_quat) * (o.block_size[2] / 2 - o.insertion_depth)
     return (
         -0.5 * fo.norm(q.site_pos[GRASP] - tube_pos)
         - fo.norm(lower - target)

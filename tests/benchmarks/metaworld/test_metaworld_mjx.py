@@ -176,7 +176,7 @@ def test_mjx_model_observes_metaworlds_frames():
     import mujoco
 
     from openral_mjx.benchmarks.metaworld.mirror.assets import load_spec
-    from openral_mjx.scenes.composition import quat_mul
+    from openral_mjx.core.rotations import quat_mul
 
     scene = make_scene("metaworld_mjx", {"task": "reach-wall-v3"}, backend="mjx")
     assert scene.mjx_changes == {

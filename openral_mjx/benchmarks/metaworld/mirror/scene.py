@@ -43,6 +43,7 @@ from openral_mjx.benchmarks.metaworld.mirror.assets import load_spec
 from openral_mjx.benchmarks.metaworld.mirror.options import MetaWorldMjxOptions
 from openral_mjx.benchmarks.metaworld.mirror.tasks import TASKS, check_reward
 from openral_mjx.core.errors import unknown
+from openral_mjx.core.rotations import quat_mul
 from openral_mjx.physics import (
     PhysicsSettings,
     PhysicsState,
@@ -57,7 +58,7 @@ from openral_mjx.scenes.base import (
     colliding_geoms,
     obs_slices,
 )
-from openral_mjx.scenes.composition import cylinders_as_prisms, geom_frame_offsets, quat_mul
+from openral_mjx.scenes.composition import cylinders_as_prisms, geom_frame_offsets
 from openral_mjx.scenes.sensor_obs import (
     observed_cameras,
     rendered_lights,

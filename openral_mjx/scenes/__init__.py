@@ -11,6 +11,10 @@ from openral_mjx.core.errors import ConfigError
 from openral_mjx.core.options import from_mapping
 from openral_mjx.core.registry import Registry
 from openral_mjx.physics import PhysicsSettings, resolve_backend_name
+from openral_mjx.scenes import aloha as aloha_scene
+from openral_mjx.scenes import maniskill as maniskill_scene
+from openral_mjx.scenes import pusht as pusht_scene
+from openral_mjx.scenes import robosuite_scene
 from openral_mjx.scenes.aloha import AlohaOptions, aloha
 from openral_mjx.scenes.aloha import suite_tasks as aloha_suite_tasks
 from openral_mjx.scenes.base import Scene, State
@@ -60,12 +64,12 @@ SCENES.register("libero")(
         "panda",
         backends=("host",),
         suites=suite_tasks,
-        worker_env="lerobot-libero",
+        worker_env=robosuite_scene.ENV,  # LIBERO runs robosuite's Panda scenes
     )
 )
 SCENES.register("robosuite")(
     SceneEntry(
-        RobosuiteOptions, robosuite, "panda", backends=("host",), worker_env="lerobot-libero"
+        RobosuiteOptions, robosuite, "panda", backends=("host",), worker_env=robosuite_scene.ENV
     )
 )
 # Public benchmarks' scenes live in their folders (`openral_mjx.benchmarks.<name>`), each
@@ -73,7 +77,7 @@ SCENES.register("robosuite")(
 SCENES.register_lazy("metaworld", "openral_mjx.benchmarks.metaworld.host_scene:SCENE")
 SCENES.register_lazy("metaworld_mjx", "openral_mjx.benchmarks.metaworld.mirror:SCENE")
 SCENES.register("pusht")(
-    SceneEntry(PushTOptions, pusht, "pusht_agent", backends=("host",), worker_env="gym-envs")
+    SceneEntry(PushTOptions, pusht, "pusht_agent", backends=("host",), worker_env=pusht_scene.ENV)
 )
 SCENES.register("aloha")(
     SceneEntry(
@@ -82,11 +86,13 @@ SCENES.register("aloha")(
         "aloha",
         backends=("host",),
         suites=aloha_suite_tasks,
-        worker_env="gym-envs",
+        worker_env=aloha_scene.ENV,
     )
 )
 SCENES.register("maniskill")(
-    SceneEntry(ManiSkillOptions, maniskill, "panda", backends=("host",), worker_env="maniskill")
+    SceneEntry(
+        ManiSkillOptions, maniskill, "panda", backends=("host",), worker_env=maniskill_scene.ENV
+    )
 )
 
 

@@ -287,5 +287,5 @@ SCENE = SceneEntry(
     "sawyer",
     backends=("host",),
     suites=suite_tasks,
-    worker_env="metaworld",
+    worker_env=ENV,
 )

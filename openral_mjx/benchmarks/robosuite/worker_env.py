@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from openral_mjx.host.libero_env import _axis_angle
+from openral_mjx.benchmarks.libero.worker_env import _axis_angle
 
 
 class RobosuiteEnv:

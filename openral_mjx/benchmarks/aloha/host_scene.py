@@ -26,10 +26,11 @@ import dataclasses
 from openral_mjx.core.errors import unknown
 from openral_mjx.core.options import check
 from openral_mjx.host.envs import ensure_env
+from openral_mjx.scenes import SceneEntry
 from openral_mjx.scenes.host_scene import HostOptions, HostScene, HostSceneSpec
 
 ENV = "gym-envs"
-FACTORY = "openral_mjx.host.aloha_env:make"
+FACTORY = "openral_mjx.benchmarks.aloha.worker_env:make"
 TASKS = ("AlohaInsertion-v0", "AlohaTransferCube-v0")
 # Instructions (ours: lerobot's ALOHA env hands policies gym-aloha's task id, e.g. "insertion").
 INSTRUCTIONS = {
@@ -104,3 +105,9 @@ def aloha(options: AlohaOptions, **_: object) -> HostScene:
         instruction=INSTRUCTIONS[o.task],
     )
     return HostScene(spec, o, ENV, ensure_env(ENV))
+
+
+# `SCENES`'s entry for `aloha` (registered by reference in `openral_mjx.scenes`)
+SCENE = SceneEntry(
+    AlohaOptions, aloha, "aloha", backends=("host",), suites=suite_tasks, worker_env=ENV
+)

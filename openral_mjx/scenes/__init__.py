@@ -20,8 +20,9 @@ from openral_mjx.scenes.tabletop_push import TabletopPush, TabletopPushOptions
 @dataclasses.dataclass(frozen=True)
 class SceneEntry:
     """How to build a scene: its options class, its constructor, a fixed robot if any, the
-    physics backends it runs on (None: every MuJoCo backend; host scenes: `host`), and the
-    worker environment (`openral_mjx.host.envs`) its simulator or assets come from, if any."""
+    physics backends it runs on (None: every MuJoCo backend; host scenes: `host`), its tasks
+    and suites, and the worker environment (`openral_mjx.host.envs`) its simulator or assets
+    come from, if any. `eval --list` and `eval --help` read the tasks and suites from here."""
 
     options_cls: type
     build: Callable[..., Scene]
@@ -29,6 +30,12 @@ class SceneEntry:
     backends: tuple[str, ...] | None = None
     suites: Callable[[str], list[str]] | None = None  # suite name -> its tasks
     worker_env: str | None = None
+    tasks: str | None = None  # how `--task` names a task, one line with examples; None: one task
+    suite_names: tuple[str, ...] = ()  # the names `suites` takes, in the benchmark's order
+
+    def __post_init__(self) -> None:
+        if (self.suites is None) != (not self.suite_names):
+            raise ValueError("a SceneEntry with suites names them in suite_names, and only then")
 
 
 SCENES: Registry[SceneEntry] = Registry("scene")

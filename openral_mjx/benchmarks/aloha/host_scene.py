@@ -30,6 +30,7 @@ from openral_mjx.scenes import SceneEntry
 from openral_mjx.scenes.host_scene import HostOptions, HostScene, HostSceneSpec
 
 ENV = "gym-envs"
+ROBOT = "aloha"
 FACTORY = "openral_mjx.benchmarks.aloha.worker_env:make"
 TASKS = ("AlohaInsertion-v0", "AlohaTransferCube-v0")
 # Instructions (ours: lerobot's ALOHA env hands policies gym-aloha's task id, e.g. "insertion").
@@ -96,7 +97,7 @@ def aloha(options: AlohaOptions, **_: object) -> HostScene:
     spec = HostSceneSpec(
         name="aloha",
         task=o.task,
-        robot="aloha",
+        robot=ROBOT,
         batch=batch,
         action_low=ARM_LOW * 2,
         action_high=ARM_HIGH * 2,
@@ -109,5 +110,12 @@ def aloha(options: AlohaOptions, **_: object) -> HostScene:
 
 # `SCENES`'s entry for `aloha` (registered by reference in `openral_mjx.scenes`)
 SCENE = SceneEntry(
-    AlohaOptions, aloha, "aloha", backends=("host",), suites=suite_tasks, worker_env=ENV
+    AlohaOptions,
+    aloha,
+    ROBOT,
+    backends=("host",),
+    suites=suite_tasks,
+    worker_env=ENV,
+    tasks=", ".join(TASKS),
+    suite_names=tuple(SUITES),
 )

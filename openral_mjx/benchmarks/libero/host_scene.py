@@ -17,7 +17,7 @@ from __future__ import annotations
 import dataclasses
 
 from openral_mjx.benchmarks.libero.instructions import INSTRUCTIONS
-from openral_mjx.benchmarks.robosuite.host_scene import ENV, panda_osc_scene
+from openral_mjx.benchmarks.robosuite.host_scene import ENV, ROBOT, panda_osc_scene
 from openral_mjx.core.errors import ConfigError, unknown
 from openral_mjx.core.options import check
 from openral_mjx.scenes import SceneEntry
@@ -105,8 +105,10 @@ def libero(options: LiberoOptions, **_: object) -> HostScene:
 SCENE = SceneEntry(
     LiberoOptions,
     libero,
-    "panda",
+    ROBOT,
     backends=("host",),
     suites=suite_tasks,
     worker_env=ENV,  # LIBERO runs robosuite's Panda scenes
+    tasks="SUITE/INDEX (INDEX from 0), e.g. libero_spatial/0",
+    suite_names=tuple(SUITES),
 )

@@ -31,6 +31,7 @@ from openral_mjx.scenes import SceneEntry
 from openral_mjx.scenes.host_scene import HostOptions, HostScene, HostSceneSpec
 
 ENV = "maniskill"
+ROBOT = "panda"  # ManiSkill's Franka Panda
 FACTORY = "openral_mjx.benchmarks.maniskill.worker_env:make"
 TASKS = ("PickCube-v1", "PushCube-v1", "StackCube-v1")
 # Instructions (ours: ManiSkill's tasks carry none).
@@ -84,7 +85,7 @@ def maniskill(options: ManiSkillOptions, **_: object) -> HostScene:
     spec = HostSceneSpec(
         name="maniskill",
         task=o.task,
-        robot="panda",
+        robot=ROBOT,
         batch=batch,
         action_low=(-1.0,) * size,
         action_high=(1.0,) * size,
@@ -96,4 +97,6 @@ def maniskill(options: ManiSkillOptions, **_: object) -> HostScene:
 
 
 # `SCENES`'s entry for `maniskill` (registered by reference in `openral_mjx.scenes`)
-SCENE = SceneEntry(ManiSkillOptions, maniskill, "panda", backends=("host",), worker_env=ENV)
+SCENE = SceneEntry(
+    ManiSkillOptions, maniskill, ROBOT, backends=("host",), worker_env=ENV, tasks=", ".join(TASKS)
+)

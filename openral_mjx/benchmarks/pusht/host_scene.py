@@ -26,6 +26,7 @@ from openral_mjx.scenes import SceneEntry
 from openral_mjx.scenes.host_scene import HostOptions, HostScene, HostSceneSpec
 
 ENV = "gym-envs"
+ROBOT = "pusht_agent"
 FACTORY = "openral_mjx.benchmarks.pusht.worker_env:make"
 FACTORS = ("block_x", "block_y", "block_angle", "agent_x", "agent_y")
 TASKS = ("PushT-v0",)
@@ -73,7 +74,7 @@ def pusht(options: PushTOptions, **_: object) -> HostScene:
     spec = HostSceneSpec(
         name="pusht",
         task=o.task,
-        robot="pusht_agent",
+        robot=ROBOT,
         batch=batch,
         action_low=(0.0, 0.0),
         action_high=(ACTION_HIGH, ACTION_HIGH),
@@ -85,4 +86,6 @@ def pusht(options: PushTOptions, **_: object) -> HostScene:
 
 
 # `SCENES`'s entry for `pusht` (registered by reference in `openral_mjx.scenes`)
-SCENE = SceneEntry(PushTOptions, pusht, "pusht_agent", backends=("host",), worker_env=ENV)
+SCENE = SceneEntry(
+    PushTOptions, pusht, ROBOT, backends=("host",), worker_env=ENV, tasks=", ".join(TASKS)
+)

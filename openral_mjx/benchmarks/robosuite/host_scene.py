@@ -20,6 +20,7 @@ from openral_mjx.scenes import SceneEntry
 from openral_mjx.scenes.host_scene import HostOptions, HostScene, HostSceneSpec
 
 ENV = "lerobot-libero"
+ROBOT = "panda"  # robosuite's Panda, also LIBERO's
 OBJECT_SIZE = {"Lift": 10}  # the task's object observation
 # Instructions (ours: robosuite and lerobot define none for these tasks).
 INSTRUCTIONS = {"Lift": "lift the red cube off the table"}
@@ -64,7 +65,7 @@ def panda_osc_scene(
     spec = HostSceneSpec(
         name=name,
         task=task,
-        robot="panda",
+        robot=ROBOT,
         batch=batch,
         action_low=(-1.0,) * 7,
         action_high=(1.0,) * 7,
@@ -97,4 +98,11 @@ def robosuite(options: RobosuiteOptions, **_: object) -> HostScene:
 
 
 # `SCENES`'s entry for `robosuite` (registered by reference in `openral_mjx.scenes`)
-SCENE = SceneEntry(RobosuiteOptions, robosuite, "panda", backends=("host",), worker_env=ENV)
+SCENE = SceneEntry(
+    RobosuiteOptions,
+    robosuite,
+    ROBOT,
+    backends=("host",),
+    worker_env=ENV,
+    tasks=", ".join(OBJECT_SIZE),
+)

@@ -49,7 +49,7 @@ from openral_mjx.scenes import make_scene
 # scene -> (worker environment, env factory, action size, extra factory kwargs / scene options,
 # resets per run: the episode's, plus one for the factors where the scene has them)
 SCENES = {
-    "libero": ("lerobot-libero", "openral_mjx.host.libero_env:LiberoEnv", 7, {}, 1),
+    "libero": ("lerobot-libero", "openral_mjx.benchmarks.libero.worker_env:LiberoEnv", 7, {}, 1),
     "metaworld": (
         "metaworld",
         "openral_mjx.benchmarks.metaworld.worker_env:make",
@@ -57,9 +57,9 @@ SCENES = {
         {"expert": False},
         2,
     ),
-    "pusht": ("gym-envs", "openral_mjx.host.pusht_env:make", 2, {}, 2),
-    "aloha": ("gym-envs", "openral_mjx.host.aloha_env:make", 14, {}, 2),
-    "maniskill": ("maniskill", "openral_mjx.host.maniskill_env:make", 8, {}, 2),
+    "pusht": ("gym-envs", "openral_mjx.benchmarks.pusht.worker_env:make", 2, {}, 2),
+    "aloha": ("gym-envs", "openral_mjx.benchmarks.aloha.worker_env:make", 14, {}, 2),
+    "maniskill": ("maniskill", "openral_mjx.benchmarks.maniskill.worker_env:make", 8, {}, 2),
 }
 # scene -> the environment variables its scene sets in its workers (the reference loop's too)
 WORKER_ENV = {"maniskill": {"OMP_NUM_THREADS": "1"}}

@@ -17,6 +17,7 @@ import datetime as dt
 import re
 import sys
 from pathlib import Path
+from typing import Annotated
 
 import tyro
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
@@ -55,6 +56,26 @@ from openral_mjx.viz.plots import save_png, sweep_curve, write_plots
 from openral_mjx.viz.video import default_camera, write_episode_video
 
 
+def _per_scene(what: str) -> str:
+    """Each scene's task naming (`what="tasks"`) or suite names (`"suites"`), ``scenes: text``
+    joined by semicolons (scenes with the same text, a mirror and its original, together), for
+    the --task/--suite help: read from `SCENES`, so a scene's registration is its help too."""
+    by_text: dict[str, list[str]] = {}
+    for name in SCENES.names():
+        entry = SCENES.get(name)
+        text = entry.tasks if what == "tasks" else ", ".join(entry.suite_names)
+        if text:
+            by_text.setdefault(text, []).append(name)
+    return "; ".join(f"{', '.join(names)}: {text}" for text, names in by_text.items())
+
+
+TASK_HELP = f"Task of a multi-task scene (--list shows each scene's): {_per_scene('tasks')}."
+SUITE_HELP = (
+    f"Evaluate every task of a suite ({_per_scene('suites')}); reports per-task rates and "
+    "their average."
+)
+
+
 @dataclasses.dataclass
 class EvalArgs:
     """Evaluate a policy on a MuJoCo scene over many seeds at once."""
@@ -63,14 +84,8 @@ class EvalArgs:
     """Scene ID (see --list)."""
     policy: str = "scripted"
     """Policy ID, or ID:ARG (see --list)."""
-    task: str | None = None
-    """Task of a multi-task scene (libero: SUITE/INDEX, e.g. libero_spatial/0; robosuite: Lift;
-    metaworld: reach-v3, push-v3, ...; pusht: PushT-v0; aloha: AlohaInsertion-v0,
-    AlohaTransferCube-v0; maniskill: PickCube-v1, PushCube-v1, StackCube-v1)."""
-    suite: str | None = None
-    """Evaluate every task of a suite (libero: libero_spatial, libero_object, libero_goal,
-    libero_10, libero_90; metaworld: mt10, mt50, ml45-train, ml45-test; aloha: all); reports
-    per-task rates and their average."""
+    task: Annotated[str | None, tyro.conf.arg(help=TASK_HELP)] = None
+    suite: Annotated[str | None, tyro.conf.arg(help=SUITE_HELP)] = None
     robot: str | None = None
     """Registered robot for robot-agnostic scenes (default: the scene's, so101)."""
     robot_mjcf: Path | None = None
@@ -650,6 +665,25 @@ def sequential_summary(report: EvalReport) -> str:
     )
 
 
+def _scene_listing(name: str) -> list[str]:
+    """Scene `name`'s lines in --list, from its registration: backends, robot, tasks, suites."""
+    entry = SCENES.get(name)
+    backends = entry.backends or tuple(b for b in BACKEND_NAMES if b != "auto")
+    robot_field = {f.name: f for f in dataclasses.fields(entry.options_cls)}.get("robot")
+    if entry.fixed_robot is not None:
+        robot = entry.fixed_robot
+    elif robot_field is not None:
+        robot = f"--robot or --robot-mjcf (default {robot_field.default})"
+    else:
+        robot = "none"
+    lines = [f"  {name}: backends {', '.join(backends)}; robot {robot}"]
+    if entry.tasks:
+        lines.append(f"    --task  {entry.tasks}")
+    if entry.suite_names:
+        lines.append(f"    --suite {', '.join(entry.suite_names)}")
+    return lines
+
+
 def _listing() -> str:
     return "\n".join(
         [
@@ -657,6 +691,9 @@ def _listing() -> str:
             f"policies: {', '.join(POLICIES.names())}",
             f"robots:   {', '.join(ROBOTS.names())}",
             f"backends: {', '.join(BACKEND_NAMES)} (MuJoCo scenes), host (host scenes)",
+            "",
+            "scenes, as registered (tasks: --task; suites: --suite):",
+            *(line for name in SCENES.names() for line in _scene_listing(name)),
         ]
     )
 

@@ -110,6 +110,24 @@ def test_compare_with_another_scene_or_schema(monkeypatch, capsys, tmp_path):
 def test_list(monkeypatch, capsys):
     code, out, _ = run_cli(monkeypatch, capsys, "--list")
     assert code == 0 and "so101_box, tabletop_push" in out and "scripted" in out and "so101" in out
+    # each scene's backends, robot, tasks and suites, as registered
+    assert "  libero: backends host; robot panda\n    --task  SUITE/INDEX" in out
+    assert "    --suite libero_spatial, libero_object, libero_goal, libero_10, libero_90" in out
+    assert "  metaworld_mjx: backends mjx, warp, c; robot sawyer\n" in out
+    assert "  tabletop_push: backends mjx, warp, c; robot --robot or --robot-mjcf" in out
+
+
+def test_task_and_suite_help_come_from_the_registry(monkeypatch, capsys):
+    """--task/--suite help names every scene's tasks and suites, from its `SceneEntry`."""
+    from openral_mjx.scenes import SCENES
+
+    code, out, _ = run_cli(monkeypatch, capsys, "--help")
+    flat = " ".join(out.replace("│", " ").split())
+    assert code == 0 and "--list shows each scene's" in flat
+    for name in SCENES.names():
+        entry = SCENES.get(name)
+        for text in (entry.tasks, ", ".join(entry.suite_names)):
+            assert " ".join((text or "").split()) in flat, (name, text)
 
 
 @pytest.mark.parametrize(

@@ -46,6 +46,7 @@ ROLES = {
     "render": "viz",
     "host_scene": "scenes",
     "mirror": "scenes",
+    "instructions": "scenes",  # data: the benchmark's task instructions, read by its scenes
     "expert": "policies",
     "worker_env": "host",
 }

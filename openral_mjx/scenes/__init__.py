@@ -11,18 +11,8 @@ from openral_mjx.core.errors import ConfigError
 from openral_mjx.core.options import from_mapping
 from openral_mjx.core.registry import Registry
 from openral_mjx.physics import PhysicsSettings, resolve_backend_name
-from openral_mjx.scenes import aloha as aloha_scene
-from openral_mjx.scenes import maniskill as maniskill_scene
-from openral_mjx.scenes import pusht as pusht_scene
-from openral_mjx.scenes import robosuite_scene
-from openral_mjx.scenes.aloha import AlohaOptions, aloha
-from openral_mjx.scenes.aloha import suite_tasks as aloha_suite_tasks
 from openral_mjx.scenes.base import Scene, State
-from openral_mjx.scenes.libero import LiberoOptions, libero, suite_tasks
-from openral_mjx.scenes.maniskill import ManiSkillOptions, maniskill
 from openral_mjx.scenes.point_reach import PointReachOptions, point_reach
-from openral_mjx.scenes.pusht import PushTOptions, pusht
-from openral_mjx.scenes.robosuite_scene import RobosuiteOptions, robosuite
 from openral_mjx.scenes.so101_box import So101Box, So101BoxOptions
 from openral_mjx.scenes.tabletop_push import TabletopPush, TabletopPushOptions
 
@@ -30,8 +20,9 @@ from openral_mjx.scenes.tabletop_push import TabletopPush, TabletopPushOptions
 @dataclasses.dataclass(frozen=True)
 class SceneEntry:
     """How to build a scene: its options class, its constructor, a fixed robot if any, the
-    physics backends it runs on (None: every MuJoCo backend; host scenes: `host`), and the
-    worker environment (`openral_mjx.host.envs`) its simulator or assets come from, if any."""
+    physics backends it runs on (None: every MuJoCo backend; host scenes: `host`), its tasks
+    and suites, and the worker environment (`openral_mjx.host.envs`) its simulator or assets
+    come from, if any. `eval --list` and `eval --help` read the tasks and suites from here."""
 
     options_cls: type
     build: Callable[..., Scene]
@@ -39,6 +30,12 @@ class SceneEntry:
     backends: tuple[str, ...] | None = None
     suites: Callable[[str], list[str]] | None = None  # suite name -> its tasks
     worker_env: str | None = None
+    tasks: str | None = None  # how `--task` names a task, one line with examples; None: one task
+    suite_names: tuple[str, ...] = ()  # the names `suites` takes, in the benchmark's order
+
+    def __post_init__(self) -> None:
+        if (self.suites is None) != (not self.suite_names):
+            raise ValueError("a SceneEntry with suites names them in suite_names, and only then")
 
 
 SCENES: Registry[SceneEntry] = Registry("scene")
@@ -57,43 +54,15 @@ def check_robot(name: str, robot: str | None, robot_mjcf: str | None = None) -> 
 
 
 SCENES.register("point_reach")(SceneEntry(PointReachOptions, point_reach, backends=("host",)))
-SCENES.register("libero")(
-    SceneEntry(
-        LiberoOptions,
-        libero,
-        "panda",
-        backends=("host",),
-        suites=suite_tasks,
-        worker_env=robosuite_scene.ENV,  # LIBERO runs robosuite's Panda scenes
-    )
-)
-SCENES.register("robosuite")(
-    SceneEntry(
-        RobosuiteOptions, robosuite, "panda", backends=("host",), worker_env=robosuite_scene.ENV
-    )
-)
 # Public benchmarks' scenes live in their folders (`openral_mjx.benchmarks.<name>`), each
 # module's `SCENE` its entry; they import this package, so they are registered by reference.
+SCENES.register_lazy("libero", "openral_mjx.benchmarks.libero.host_scene:SCENE")
+SCENES.register_lazy("robosuite", "openral_mjx.benchmarks.robosuite.host_scene:SCENE")
 SCENES.register_lazy("metaworld", "openral_mjx.benchmarks.metaworld.host_scene:SCENE")
 SCENES.register_lazy("metaworld_mjx", "openral_mjx.benchmarks.metaworld.mirror:SCENE")
-SCENES.register("pusht")(
-    SceneEntry(PushTOptions, pusht, "pusht_agent", backends=("host",), worker_env=pusht_scene.ENV)
-)
-SCENES.register("aloha")(
-    SceneEntry(
-        AlohaOptions,
-        aloha,
-        "aloha",
-        backends=("host",),
-        suites=aloha_suite_tasks,
-        worker_env=aloha_scene.ENV,
-    )
-)
-SCENES.register("maniskill")(
-    SceneEntry(
-        ManiSkillOptions, maniskill, "panda", backends=("host",), worker_env=maniskill_scene.ENV
-    )
-)
+SCENES.register_lazy("pusht", "openral_mjx.benchmarks.pusht.host_scene:SCENE")
+SCENES.register_lazy("aloha", "openral_mjx.benchmarks.aloha.host_scene:SCENE")
+SCENES.register_lazy("maniskill", "openral_mjx.benchmarks.maniskill.host_scene:SCENE")
 
 
 def scene_suite(name: str, suite: str) -> list[str]:

@@ -125,13 +125,13 @@ def _direct(python, factory, kwargs, episodes, log):
     "factory,kwargs,observation,init",
     [
         (
-            "openral_mjx.host.libero_env:LiberoEnv",
+            "openral_mjx.benchmarks.libero.worker_env:LiberoEnv",
             {"task": "libero_object/2", "image_size": IMAGE},
             LIBERO_OBS,
             [{"init_state": 3}, {"init_state": 7}],
         ),
         (
-            "openral_mjx.host.robosuite_env:RobosuiteEnv",
+            "openral_mjx.benchmarks.robosuite.worker_env:RobosuiteEnv",
             {"task": "Lift", "image_size": 0, "horizon": 50},
             {"state": ((8,), "float32"), "object": ((10,), "float32")},
             [{}, {}],

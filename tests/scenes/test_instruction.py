@@ -14,21 +14,19 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
+from openral_mjx.benchmarks.aloha import host_scene as aloha
+from openral_mjx.benchmarks.libero import host_scene as libero
+from openral_mjx.benchmarks.libero.instructions import INSTRUCTIONS as LIBERO
+from openral_mjx.benchmarks.metaworld import host_scene as mw
 from openral_mjx.benchmarks.metaworld.mirror.tasks import TASKS as MIRROR_TASKS
+from openral_mjx.benchmarks.pusht import host_scene as pusht
+from openral_mjx.benchmarks.robosuite import host_scene as robosuite
 from openral_mjx.evaluation.suite import merge_reports
 from openral_mjx.host import envs
 from openral_mjx.physics import PhysicsSettings
 from openral_mjx.policies.lerobot import LerobotClient
 from openral_mjx.report import EvalReport
 from openral_mjx.scenes import SCENES, Scene, make_scene, scene_options
-from openral_mjx.scenes.libero_instructions import INSTRUCTIONS as LIBERO
-
-# the modules (the package binds these names to the scenes' constructors)
-mw = importlib.import_module("openral_mjx.benchmarks.metaworld.host_scene")
-libero = importlib.import_module("openral_mjx.scenes.libero")
-aloha = importlib.import_module("openral_mjx.scenes.aloha")
-pusht = importlib.import_module("openral_mjx.scenes.pusht")
-robosuite = importlib.import_module("openral_mjx.scenes.robosuite_scene")
 
 
 @pytest.fixture
@@ -112,7 +110,7 @@ def test_libero_text_is_libero_tasks_language():
     python = envs.env_python("lerobot-libero")
     _site_packages("lerobot-libero")
     script = (
-        "import json; from openral_mjx.host.libero_env import configure; configure(); "
+        "import json; from openral_mjx.benchmarks.libero.worker_env import configure; configure(); "
         "from libero.libero import benchmark; d = benchmark.get_benchmark_dict(); "
         "print(json.dumps({s: [d[s]().get_task(i).language for i in range(d[s]().n_tasks)] "
         f"for s in {list(LIBERO)!r}}}))"

@@ -93,3 +93,17 @@ def test_lazy_entries_resolve_on_first_get():
     with pytest.raises(ConfigError, match="unknown thing 'nope'"):
         reg.get("nope")
     assert SCENES.get("metaworld_mjx").worker_env == "metaworld"  # a lazy entry, resolved
+
+
+def test_registered_suites_are_the_scenes_suites():
+    """Each entry's `suite_names` (what --list and --help show) are suites its `suites` takes,
+    every one non-empty; an entry with suites but no names, or names but no suites, is refused."""
+    from openral_mjx.scenes import SceneEntry, scene_suite
+
+    for name in SCENES.names():
+        for suite in SCENES.get(name).suite_names:
+            assert scene_suite(name, suite), (name, suite)
+    with pytest.raises(ValueError, match="suite_names"):
+        SceneEntry(object, make_scene, suites=lambda s: [s])
+    with pytest.raises(ValueError, match="suite_names"):
+        SceneEntry(object, make_scene, suite_names=("all",))

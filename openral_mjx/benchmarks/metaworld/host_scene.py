@@ -29,6 +29,7 @@ from openral_mjx.scenes import SceneEntry
 from openral_mjx.scenes.host_scene import HostOptions, HostScene, HostSceneSpec
 
 ENV = "metaworld"
+ROBOT = "sawyer"
 FACTORY = "openral_mjx.benchmarks.metaworld.worker_env:make"
 FACTORS = ("obj_x", "obj_y", "obj_z", "goal_x", "goal_y", "goal_z")
 OBS_SIZE = 39
@@ -269,7 +270,7 @@ def metaworld(options: MetaWorldOptions, **_: object) -> HostScene:
     spec = HostSceneSpec(
         name="metaworld",
         task=o.task,
-        robot="sawyer",
+        robot=ROBOT,
         batch=batch,
         action_low=(-1.0,) * ACTION_SIZE,
         action_high=(1.0,) * ACTION_SIZE,
@@ -284,8 +285,10 @@ def metaworld(options: MetaWorldOptions, **_: object) -> HostScene:
 SCENE = SceneEntry(
     MetaWorldOptions,
     metaworld,
-    "sawyer",
+    ROBOT,
     backends=("host",),
     suites=suite_tasks,
     worker_env=ENV,
+    tasks=f"MetaWorld's {len(TASKS)} v3 tasks, e.g. {', '.join(MT10[:3])}",
+    suite_names=tuple(SUITES),
 )

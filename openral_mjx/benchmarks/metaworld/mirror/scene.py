@@ -37,6 +37,7 @@ import jax.numpy as jnp
 import mujoco
 import numpy as np
 
+from openral_mjx.benchmarks.metaworld.host_scene import ROBOT
 from openral_mjx.benchmarks.metaworld.host_scene import instruction as host_instruction
 from openral_mjx.benchmarks.metaworld.mirror import task as mw
 from openral_mjx.benchmarks.metaworld.mirror.assets import load_spec
@@ -140,7 +141,7 @@ class MetaWorldMjx(Scene):
     """One MetaWorld v3 task on a MuJoCo backend (see the module docstring)."""
 
     name = "metaworld_mjx"
-    robot_name = "sawyer"
+    robot_name = ROBOT
 
     def __init__(
         self,

@@ -17,7 +17,7 @@ Success: ManiSkill's ``info["success"]``, which ends the episode; episodes last 
 ManiSkill's registered 50 steps by default. Episode factors: the objects' initial x, y
 (``cube_*``; ``cubeA_*``, ``cubeB_*``) and PickCube's goal position (``goal_x/y/z``). Runs in the
 ``maniskill`` worker environment, created on first use (see `openral_mjx.host.envs`). No
-camera observations: SAPIEN renders through Vulkan only (see `openral_mjx.host.maniskill_env`).
+camera observations: SAPIEN renders through Vulkan only (see `worker_env`).
 """
 
 from __future__ import annotations
@@ -27,10 +27,12 @@ import dataclasses
 from openral_mjx.core.errors import unknown
 from openral_mjx.core.options import check
 from openral_mjx.host.envs import ensure_env
+from openral_mjx.scenes import SceneEntry
 from openral_mjx.scenes.host_scene import HostOptions, HostScene, HostSceneSpec
 
 ENV = "maniskill"
-FACTORY = "openral_mjx.host.maniskill_env:make"
+ROBOT = "panda"  # ManiSkill's Franka Panda
+FACTORY = "openral_mjx.benchmarks.maniskill.worker_env:make"
 TASKS = ("PickCube-v1", "PushCube-v1", "StackCube-v1")
 # Instructions (ours: ManiSkill's tasks carry none).
 INSTRUCTIONS = {
@@ -83,7 +85,7 @@ def maniskill(options: ManiSkillOptions, **_: object) -> HostScene:
     spec = HostSceneSpec(
         name="maniskill",
         task=o.task,
-        robot="panda",
+        robot=ROBOT,
         batch=batch,
         action_low=(-1.0,) * size,
         action_high=(1.0,) * size,
@@ -92,3 +94,9 @@ def maniskill(options: ManiSkillOptions, **_: object) -> HostScene:
         instruction=INSTRUCTIONS[o.task],
     )
     return HostScene(spec, o, ENV, ensure_env(ENV))
+
+
+# `SCENES`'s entry for `maniskill` (registered by reference in `openral_mjx.scenes`)
+SCENE = SceneEntry(
+    ManiSkillOptions, maniskill, ROBOT, backends=("host",), worker_env=ENV, tasks=", ".join(TASKS)
+)

@@ -3,7 +3,6 @@ that environment first; elsewhere these tests are skipped until
 `python -m openral_mjx.host.envs create gym-envs` has run. Small camera images keep Mesa's
 software renderer fast; lerobot's policies see 480 x 640 (the scene's default)."""
 
-import importlib
 import os
 import subprocess
 
@@ -13,6 +12,7 @@ import numpy as np
 import pytest
 from worker_envs import require_worker_envs
 
+from openral_mjx.benchmarks.aloha import host_scene as al
 from openral_mjx.core.errors import ConfigError
 from openral_mjx.evaluation import evaluate
 from openral_mjx.evaluation.spec import RunSpec
@@ -21,9 +21,6 @@ from openral_mjx.host import envs
 from openral_mjx.host.pool import _shim_dir
 from openral_mjx.runner.episode import seed_keys
 from openral_mjx.scenes import make_scene, scene_options, scene_suite
-
-# the module (the package's `aloha` attribute is the scene's constructor)
-al = importlib.import_module("openral_mjx.scenes.aloha")
 
 ENV = "gym-envs"
 require_worker_envs(ENV)
@@ -117,7 +114,7 @@ def test_the_top_image_is_gym_alohas(python):
     as gym-aloha's own observation after the same reset, at lerobot's 480 x 640."""
     script = (
         "import numpy as np; from gym_aloha.env import AlohaEnv; "
-        "from openral_mjx.host.aloha_env import make; "
+        "from openral_mjx.benchmarks.aloha.worker_env import make; "
         "a = AlohaEnv(task='transfer_cube', obs_type='pixels_agent_pos'); "
         "b = make(task='AlohaTransferCube-v0'); "
         "ra, _ = a.reset(seed=5); rb, _ = b.reset(seed=5); "

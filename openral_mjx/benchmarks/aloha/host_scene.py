@@ -26,10 +26,12 @@ import dataclasses
 from openral_mjx.core.errors import unknown
 from openral_mjx.core.options import check
 from openral_mjx.host.envs import ensure_env
+from openral_mjx.scenes import SceneEntry
 from openral_mjx.scenes.host_scene import HostOptions, HostScene, HostSceneSpec
 
 ENV = "gym-envs"
-FACTORY = "openral_mjx.host.aloha_env:make"
+ROBOT = "aloha"
+FACTORY = "openral_mjx.benchmarks.aloha.worker_env:make"
 TASKS = ("AlohaInsertion-v0", "AlohaTransferCube-v0")
 # Instructions (ours: lerobot's ALOHA env hands policies gym-aloha's task id, e.g. "insertion").
 INSTRUCTIONS = {
@@ -95,7 +97,7 @@ def aloha(options: AlohaOptions, **_: object) -> HostScene:
     spec = HostSceneSpec(
         name="aloha",
         task=o.task,
-        robot="aloha",
+        robot=ROBOT,
         batch=batch,
         action_low=ARM_LOW * 2,
         action_high=ARM_HIGH * 2,
@@ -104,3 +106,16 @@ def aloha(options: AlohaOptions, **_: object) -> HostScene:
         instruction=INSTRUCTIONS[o.task],
     )
     return HostScene(spec, o, ENV, ensure_env(ENV))
+
+
+# `SCENES`'s entry for `aloha` (registered by reference in `openral_mjx.scenes`)
+SCENE = SceneEntry(
+    AlohaOptions,
+    aloha,
+    ROBOT,
+    backends=("host",),
+    suites=suite_tasks,
+    worker_env=ENV,
+    tasks=", ".join(TASKS),
+    suite_names=tuple(SUITES),
+)

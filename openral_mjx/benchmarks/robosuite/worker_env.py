@@ -15,7 +15,14 @@ from typing import Any
 
 import numpy as np
 
-from openral_mjx.host.libero_env import _axis_angle
+
+def axis_angle(quat_xyzw: np.ndarray) -> np.ndarray:
+    """Unit quaternion (x, y, z, w) -> axis * angle (robosuite's `quat2axisangle`)."""
+    w = float(np.clip(quat_xyzw[3], -1.0, 1.0))
+    s = np.sqrt(1.0 - w * w)
+    if s < 1e-8:
+        return np.zeros(3, np.float32)
+    return (quat_xyzw[:3] * 2.0 * np.arccos(w) / s).astype(np.float32)
 
 
 class RobosuiteEnv:
@@ -47,7 +54,7 @@ class RobosuiteEnv:
             "state": np.concatenate(
                 [
                     raw["robot0_eef_pos"].astype(np.float32),
-                    _axis_angle(raw["robot0_eef_quat"]),
+                    axis_angle(raw["robot0_eef_quat"]),
                     raw["robot0_gripper_qpos"].astype(np.float32),
                 ]
             ),

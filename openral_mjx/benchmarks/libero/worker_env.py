@@ -23,6 +23,8 @@ from typing import Any
 
 import numpy as np
 
+from openral_mjx.benchmarks.robosuite.worker_env import axis_angle
+
 SETTLE_STEPS = 10
 CONTROL_HZ = 20  # LIBERO's control frequency
 DUMMY_ACTION = np.array([0, 0, 0, 0, 0, 0, -1], np.float32)
@@ -56,15 +58,6 @@ def configure() -> Path:
     return assets
 
 
-def _axis_angle(quat_xyzw: np.ndarray) -> np.ndarray:
-    """Unit quaternion (x, y, z, w) -> axis * angle (robosuite's `quat2axisangle`)."""
-    w = float(np.clip(quat_xyzw[3], -1.0, 1.0))
-    s = np.sqrt(1.0 - w * w)
-    if s < 1e-8:
-        return np.zeros(3, np.float32)
-    return (quat_xyzw[:3] * 2.0 * np.arccos(w) / s).astype(np.float32)
-
-
 class LiberoEnv:
     """One LIBERO task (see module docstring). `task` is ``suite/index``."""
 
@@ -88,7 +81,7 @@ class LiberoEnv:
         state = np.concatenate(
             [
                 raw["robot0_eef_pos"].astype(np.float32),
-                _axis_angle(raw["robot0_eef_quat"]),
+                axis_angle(raw["robot0_eef_quat"]),
                 raw["robot0_gripper_qpos"].astype(np.float32),
             ]
         )

@@ -8,7 +8,7 @@ seeds robosuite's RNG from the episode's reset key. Observation: ``image`` and
 axis-angle, gripper fingers: 8 floats), as lerobot's LIBERO policies expect. Action: 7-D OSC
 pose delta and gripper in [-1, 1], 20 Hz. Success: LIBERO's goal predicates. Cameras render
 offscreen through EGL (Mesa's software rasteriser on a CPU-only machine, a GPU's where there
-is one). Instruction: the task's own language (`libero_instructions`). The simulator runs in
+is one). Instruction: the task's own language (`instructions`). The simulator runs in
 the ``lerobot-libero`` worker environment, created on first use (see `openral_mjx.host.envs`).
 """
 
@@ -16,11 +16,12 @@ from __future__ import annotations
 
 import dataclasses
 
+from openral_mjx.benchmarks.libero.instructions import INSTRUCTIONS
+from openral_mjx.benchmarks.robosuite.host_scene import ENV, ROBOT, panda_osc_scene
 from openral_mjx.core.errors import ConfigError, unknown
 from openral_mjx.core.options import check
+from openral_mjx.scenes import SceneEntry
 from openral_mjx.scenes.host_scene import HostOptions, HostScene
-from openral_mjx.scenes.libero_instructions import INSTRUCTIONS
-from openral_mjx.scenes.robosuite_scene import panda_osc_scene
 
 # Tasks per suite and episode limits (lerobot's: the longest training demonstration + margin).
 SUITES = {
@@ -53,7 +54,7 @@ def suite_tasks(suite: str) -> list[str]:
 
 
 def instruction(task: str) -> str:
-    """LIBERO's language instruction of ``suite/index`` (see `libero_instructions`)."""
+    """LIBERO's language instruction of ``suite/index`` (see `instructions`)."""
     suite, index = parse_task(task)
     return INSTRUCTIONS[suite][index]
 
@@ -90,7 +91,7 @@ def libero(options: LiberoOptions, **_: object) -> HostScene:
         "libero",
         o.task,
         o,
-        "openral_mjx.host.libero_env:LiberoEnv",
+        "openral_mjx.benchmarks.libero.worker_env:LiberoEnv",
         {"task": o.task, "image_size": size},
         observation,
         o.max_steps or SUITES[suite][1],
@@ -98,3 +99,16 @@ def libero(options: LiberoOptions, **_: object) -> HostScene:
         n_init_states=INIT_STATES,
         instruction=instruction(o.task),
     )
+
+
+# `SCENES`'s entry for `libero` (registered by reference in `openral_mjx.scenes`)
+SCENE = SceneEntry(
+    LiberoOptions,
+    libero,
+    ROBOT,
+    backends=("host",),
+    suites=suite_tasks,
+    worker_env=ENV,  # LIBERO runs robosuite's Panda scenes
+    tasks="SUITE/INDEX (INDEX from 0), e.g. libero_spatial/0",
+    suite_names=tuple(SUITES),
+)

@@ -16,9 +16,11 @@ from typing import Any
 from openral_mjx.core.errors import unknown
 from openral_mjx.core.options import check
 from openral_mjx.host.envs import ensure_env
+from openral_mjx.scenes import SceneEntry
 from openral_mjx.scenes.host_scene import HostOptions, HostScene, HostSceneSpec
 
 ENV = "lerobot-libero"
+ROBOT = "panda"  # robosuite's Panda, also LIBERO's
 OBJECT_SIZE = {"Lift": 10}  # the task's object observation
 # Instructions (ours: robosuite and lerobot define none for these tasks).
 INSTRUCTIONS = {"Lift": "lift the red cube off the table"}
@@ -63,7 +65,7 @@ def panda_osc_scene(
     spec = HostSceneSpec(
         name=name,
         task=task,
-        robot="panda",
+        robot=ROBOT,
         batch=batch,
         action_low=(-1.0,) * 7,
         action_high=(1.0,) * 7,
@@ -81,7 +83,7 @@ def robosuite(options: RobosuiteOptions, **_: object) -> HostScene:
     if o.image_size > 0:
         observation["image"] = ((o.image_size, o.image_size, 3), "uint8")
     kwargs = {"task": o.task, "image_size": o.image_size, "horizon": o.max_steps + 1}
-    factory = "openral_mjx.host.robosuite_env:RobosuiteEnv"
+    factory = "openral_mjx.benchmarks.robosuite.worker_env:RobosuiteEnv"
     return panda_osc_scene(
         "robosuite",
         o.task,
@@ -93,3 +95,14 @@ def robosuite(options: RobosuiteOptions, **_: object) -> HostScene:
         o.gl,
         instruction=INSTRUCTIONS[o.task],
     )
+
+
+# `SCENES`'s entry for `robosuite` (registered by reference in `openral_mjx.scenes`)
+SCENE = SceneEntry(
+    RobosuiteOptions,
+    robosuite,
+    ROBOT,
+    backends=("host",),
+    worker_env=ENV,
+    tasks=", ".join(OBJECT_SIZE),
+)

@@ -22,10 +22,12 @@ import dataclasses
 from openral_mjx.core.errors import unknown
 from openral_mjx.core.options import check
 from openral_mjx.host.envs import ensure_env
+from openral_mjx.scenes import SceneEntry
 from openral_mjx.scenes.host_scene import HostOptions, HostScene, HostSceneSpec
 
 ENV = "gym-envs"
-FACTORY = "openral_mjx.host.pusht_env:make"
+ROBOT = "pusht_agent"
+FACTORY = "openral_mjx.benchmarks.pusht.worker_env:make"
 FACTORS = ("block_x", "block_y", "block_angle", "agent_x", "agent_y")
 TASKS = ("PushT-v0",)
 # Instructions (ours: lerobot's PushT env hands policies an empty `task`).
@@ -72,7 +74,7 @@ def pusht(options: PushTOptions, **_: object) -> HostScene:
     spec = HostSceneSpec(
         name="pusht",
         task=o.task,
-        robot="pusht_agent",
+        robot=ROBOT,
         batch=batch,
         action_low=(0.0, 0.0),
         action_high=(ACTION_HIGH, ACTION_HIGH),
@@ -81,3 +83,9 @@ def pusht(options: PushTOptions, **_: object) -> HostScene:
         instruction=INSTRUCTIONS[o.task],
     )
     return HostScene(spec, o, ENV, ensure_env(ENV))
+
+
+# `SCENES`'s entry for `pusht` (registered by reference in `openral_mjx.scenes`)
+SCENE = SceneEntry(
+    PushTOptions, pusht, ROBOT, backends=("host",), worker_env=ENV, tasks=", ".join(TASKS)
+)

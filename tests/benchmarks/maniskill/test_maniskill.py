@@ -3,14 +3,13 @@
 are skipped until `python -m openral_mjx.host.envs create maniskill` has run. A worker's first
 reset imports torch and ManiSkill (~10-20 s here), so the fast tests share one worker."""
 
-import importlib
-
 import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
 from worker_envs import require_worker_envs
 
+from openral_mjx.benchmarks.maniskill import host_scene as ms
 from openral_mjx.core.errors import ConfigError
 from openral_mjx.evaluation import evaluate
 from openral_mjx.host import envs
@@ -18,9 +17,6 @@ from openral_mjx.host.batch import BatchConfig, EnvBatch
 from openral_mjx.host.pool import Worker
 from openral_mjx.runner.episode import seed_keys
 from openral_mjx.scenes import make_scene, scene_options
-
-# the module (the package's `maniskill` attribute is the scene's constructor)
-ms = importlib.import_module("openral_mjx.scenes.maniskill")
 
 ENV = "maniskill"
 require_worker_envs(ENV)

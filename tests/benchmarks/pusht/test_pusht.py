@@ -2,14 +2,13 @@
 that environment first; elsewhere these tests are skipped until
 `python -m openral_mjx.host.envs create gym-envs` has run."""
 
-import importlib
-
 import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
 from worker_envs import require_worker_envs
 
+from openral_mjx.benchmarks.pusht import host_scene as pt
 from openral_mjx.core.errors import ConfigError
 from openral_mjx.evaluation import evaluate
 from openral_mjx.host import envs
@@ -18,9 +17,6 @@ from openral_mjx.host.pool import Worker
 from openral_mjx.policies.lerobot import key_map
 from openral_mjx.runner.episode import seed_keys
 from openral_mjx.scenes import make_scene, scene_options
-
-# the module (the package's `pusht` attribute is the scene's constructor)
-pt = importlib.import_module("openral_mjx.scenes.pusht")
 
 ENV = "gym-envs"
 require_worker_envs(ENV)

@@ -14,12 +14,13 @@ Example: ``python -m openral_mjx.compare results/random.json results/scripted.js
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Annotated
 
 import tyro
 
-from openral_mjx.cli.common import guarded
+from openral_mjx.cli.common import guarded, parse
 from openral_mjx.core.errors import unknown
 from openral_mjx.report import load_report
 from openral_mjx.stats import UNPAIRED_TESTS, check_confidence, compare_reports, format_comparison
@@ -51,8 +52,10 @@ def run(args: CompareArgs) -> int:
     return 0
 
 
-def main() -> None:
-    args = tyro.cli(CompareArgs, prog="python -m openral_mjx.compare")
+def main(argv: Sequence[str] | None = None) -> None:
+    """The command: `argv` (default: the process's arguments) -> exit code."""
+    prog = "python -m openral_mjx.compare"
+    args = parse(lambda: tyro.cli(CompareArgs, prog=prog, args=argv), prog)
     raise SystemExit(guarded(lambda: run(args)))
 
 

@@ -16,12 +16,13 @@ import dataclasses
 import datetime as dt
 import re
 import sys
+from collections.abc import Sequence
 from pathlib import Path
 
 import tyro
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
-from openral_mjx.cli.common import command_line, guarded, stderr
+from openral_mjx.cli.common import command_line, guarded, parse, stderr
 from openral_mjx.core.errors import ConfigError
 from openral_mjx.core.files import check_writable
 from openral_mjx.core.options import load_yaml, parse_overrides
@@ -43,9 +44,11 @@ from openral_mjx.scenes import (
     SCENES,
     Scene,
     check_robot,
+    check_task,
     resolve_scene_backend,
     scene_options,
     scene_suite,
+    scripted_policy,
 )
 from openral_mjx.scenes.factor_ranges import parse_factors
 from openral_mjx.stats import compare_reports, format_breakdown, format_comparison
@@ -225,6 +228,11 @@ def validate(args: EvalArgs) -> EvalPlan:
     elif args.task_processes != 1:
         raise ConfigError("--task-processes runs the tasks of a --suite at once: give --suite")
     _check_randomize(args, want_video)
+    policy = scripted_policy(args.scene, args.policy)
+    if policy != args.policy:
+        note = f"note: scene {args.scene!r} has no scripted policy of its own: running {policy}"
+        print(note, file=sys.stderr)
+        args = dataclasses.replace(args, policy=policy)
     out = args.out or _default_out(args)
     check_writable(out)
     baseline = None
@@ -304,7 +312,7 @@ def _scene_options(args: EvalArgs) -> dict:
     if args.config is not None:
         options.update(load_yaml(args.config))
     options.update(parse_overrides(args.opt))
-    if args.task is not None:
+    if check_task(args.scene, args.task):
         options["task"] = args.task
     if args.robot is not None:
         ROBOTS.get(args.robot)
@@ -689,8 +697,10 @@ def run(args: EvalArgs) -> int:
     return 0
 
 
-def main() -> None:
-    args = tyro.cli(EvalArgs, prog="python -m openral_mjx.eval")
+def main(argv: Sequence[str] | None = None) -> None:
+    """The command: `argv` (default: the process's arguments) -> exit code."""
+    prog = "python -m openral_mjx.eval"
+    args = parse(lambda: tyro.cli(EvalArgs, prog=prog, args=argv), prog)
     raise SystemExit(guarded(lambda: run(args)))
 
 

@@ -39,6 +39,9 @@ class SceneEntry:
     backends: tuple[str, ...] | None = None
     suites: Callable[[str], list[str]] | None = None  # suite name -> its tasks
     worker_env: str | None = None
+    # the policy ID of the expert its benchmark ships, for a scene with no `scripted_policy`
+    # of its own (`--policy scripted` there names it rather than only zero and random)
+    expert: str | None = None
 
 
 SCENES: Registry[SceneEntry] = Registry("scene")
@@ -94,6 +97,32 @@ SCENES.register("maniskill")(
         ManiSkillOptions, maniskill, "panda", backends=("host",), worker_env=maniskill_scene.ENV
     )
 )
+
+
+def check_task(name: str, task: str | None) -> bool:
+    """Whether `--task` is a scene option of scene `name` (multi-task scenes); a single-task
+    scene takes only its own task's name (then False), any other is a `ConfigError` naming it
+    and the scene's task."""
+    entry = SCENES.get(name)
+    if task is None or "task" in {f.name for f in dataclasses.fields(entry.options_cls)}:
+        return task is not None
+    own = getattr(entry.build, "task", None)
+    if task == own:
+        return False
+    raise ConfigError(f"unknown task {task!r} for scene {name!r}; valid: {own} (its only task)")
+
+
+def scripted_policy(name: str, policy: str) -> str:
+    """The policy to run for `--policy policy` on scene `name`: `scripted` means the scene's
+    scripted expert, which for a scene without a `scripted_policy` of its own is the expert
+    its benchmark ships (`SceneEntry.expert`); with neither, a `ConfigError` before anything
+    is built. Any other policy is returned unchanged."""
+    entry = SCENES.get(name)
+    if policy != "scripted" or hasattr(entry.build, "scripted_policy"):
+        return policy
+    if entry.expert is None:
+        raise ConfigError(f"scene {name!r} has no scripted policy; try zero, random")
+    return entry.expert
 
 
 def scene_suite(name: str, suite: str) -> list[str]:
@@ -160,8 +189,10 @@ __all__ = [
     "TabletopPush",
     "TabletopPushOptions",
     "check_robot",
+    "check_task",
     "make_scene",
     "resolve_scene_backend",
     "scene_options",
     "scene_suite",
+    "scripted_policy",
 ]

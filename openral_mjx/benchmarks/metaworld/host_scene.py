@@ -288,4 +288,5 @@ SCENE = SceneEntry(
     backends=("host",),
     suites=suite_tasks,
     worker_env=ENV,
+    expert="metaworld-expert",
 )

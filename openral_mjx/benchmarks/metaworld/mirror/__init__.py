@@ -8,6 +8,13 @@ from openral_mjx.scenes import SceneEntry
 
 # `SCENES`'s entry for `metaworld_mjx`; the mirror compiles MetaWorld's own model files, which
 # come from the `metaworld` worker environment
-SCENE = SceneEntry(MetaWorldMjxOptions, MetaWorldMjx, "sawyer", suites=suite_tasks, worker_env=ENV)
+SCENE = SceneEntry(
+    MetaWorldMjxOptions,
+    MetaWorldMjx,
+    "sawyer",
+    suites=suite_tasks,
+    worker_env=ENV,
+    expert="metaworld-expert",
+)
 
 __all__ = ["SCENE", "MetaWorldMjx", "MetaWorldMjxOptions"]

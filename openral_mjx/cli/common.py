@@ -64,7 +64,7 @@ def parse(cli: Callable[[], T], prog: str) -> T:
 
 
 _ANSI = re.compile(r"\x1b\[[0-9;]*m")
-_RULE = set("─━╰╯ ")
+_RULE = set("─━-╰╯┗┛ ")
 # Python's conversion errors, said as what the flag expected and what it got
 _PLAIN = (
     (re.compile(r"invalid literal for int\(\) with base 10: "), "expected an integer, got "),
@@ -73,19 +73,22 @@ _PLAIN = (
 
 
 def one_line(text: str, prog: str) -> str:
-    """tyro's boxed error as one line: the box's first paragraph (up to its first rule), with
-    borders and wrapping removed, and where to find the help."""
-    body: list[str] = []
-    for raw in _ANSI.sub("", text).splitlines():
+    """tyro's boxed error as one line: the box's first paragraph (what is wrong, before the
+    help text), with borders and wrapping removed, and where to find the help. tyro draws the
+    box in UTF-8 (title in the top border) or, where stdout is not UTF-8, in ASCII (title on
+    its own line, then a rule of dashes)."""
+    text = _ANSI.sub("", text)
+    paragraphs: list[list[str]] = [[]]
+    for raw in text.splitlines():
         line = raw.strip().strip("│┃").strip()
-        if line.startswith(("╭", "┏")):  # the box's title ("Value error", ...)
-            continue
-        if not line or set(line) <= _RULE:
-            if body:
-                break
-            continue
-        body.append(line)
-    message = " ".join(body) or " ".join(text.split()) or "invalid command line"
+        if line.startswith(("╭", "┏")) or (line and set(line) <= _RULE):
+            paragraphs.append([])  # a border or a rule ends a paragraph
+        elif line:
+            paragraphs[-1].append(line)
+    paragraphs = [p for p in paragraphs if p]
+    if paragraphs and "╭" not in text and "┏" not in text and len(paragraphs) > 1:
+        paragraphs = paragraphs[1:]  # the ASCII box's title
+    message = " ".join(paragraphs[0]) if paragraphs else "invalid command line"
     for pattern, plain in _PLAIN:
         message = pattern.sub(plain, message)
     return f"{message} (see {prog} --help)"

@@ -93,6 +93,8 @@ def from_mapping(cls: type[T], mapping: Mapping[str, Any], base: T | None = None
 
 def load_yaml(path: Path) -> dict[str, Any]:
     """Read a YAML mapping; a missing file or a non-mapping is a `ConfigError`."""
+    if path.is_dir():
+        raise ConfigError(f"config file {str(path)!r} is a directory, not a YAML file")
     if not path.is_file():
         raise ConfigError(f"config file {str(path)!r} does not exist")
     try:

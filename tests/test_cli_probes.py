@@ -62,6 +62,8 @@ EVAL = [
     (["--out", NOT_A_DIR], "/etc/hostname"),
     (["--batching", "sometimes"], "'sometimes'"),
     (["--factor-bins", "x"], "'x'"),
+    # a flag a suite cannot honour is refused, never recorded in the command and ignored
+    (["--scene", "metaworld_mjx", "--suite", "mt10", "--factor-bins", "3"], "--factor-bins"),
 ]
 COMPARE = [
     (["{in}/good.json", "{in}/good.json"], "same file"),

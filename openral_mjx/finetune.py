@@ -164,7 +164,7 @@ def _scene_options(args: SceneArgs) -> dict[str, Any]:
     if args.config is not None:
         options.update(load_yaml(args.config))
     options.update(parse_overrides(args.opt))
-    if args.task is not None:
+    if check_task(args.scene, args.task):  # a single-task scene's own task is no option
         options["task"] = args.task
     return options
 
@@ -177,17 +177,15 @@ def _validate(args: BcArgs | PpoArgs) -> dict[str, Any]:
     if args.backend not in BACKEND_NAMES:
         raise unknown("backend", args.backend, BACKEND_NAMES)
     options = _scene_options(args)
-    if not check_task(args.scene, args.task):
-        options.pop("task", None)
     scene_options(args.scene, options)
-    sizes = [("n_envs", args.n_envs, MAX_ENVS), ("eval_episodes", args.eval_episodes, None)]
+    sizes = [("n_envs", args.n_envs, MAX_ENVS), ("eval_episodes", args.eval_episodes, MAX_EPISODES)]
     if isinstance(args, BcArgs):
-        sizes += [("n_demos", args.n_demos, MAX_EPISODES)]
+        sizes.append(("n_demos", args.n_demos, MAX_EPISODES))
     else:
-        sizes += [("eval_n_envs", args.eval_n_envs, MAX_ENVS)]
+        sizes.append(("eval_n_envs", args.eval_n_envs, MAX_ENVS))
     for name, value, most in sizes:
-        if value > (most or MAX_EPISODES):
-            raise ConfigError(f"{name} must be at most {most or MAX_EPISODES:,}, got {value}")
+        if value > most:
+            raise ConfigError(f"{name} must be at most {most:,} (a bound on memory), got {value}")
     if args.max_steps is not None:
         check_counts(1, 1, args.max_steps)
     check_seeds(args.seed)

@@ -157,6 +157,10 @@ class EvalArgs:
 
 # ---- validate --------------------------------------------------------------------------------
 
+# The most episodes re-simulated for videos or sensor frames (each is a file, or a slice of
+# one, held in memory while it is written).
+MAX_VIDEOS = 1000
+
 
 @dataclasses.dataclass(frozen=True)
 class EvalPlan:
@@ -214,6 +218,11 @@ def validate(args: EvalArgs) -> EvalPlan:
         )
     if args.frames < 0:
         raise ConfigError(f"frames must be >= 0, got {args.frames}")
+    for flag, count in (("--video", args.video), ("--video-failures", args.video_failures)):
+        if count > MAX_VIDEOS:
+            raise ConfigError(f"{flag} must be at most {MAX_VIDEOS}, got {count}")
+    if args.frames > MAX_VIDEOS:
+        raise ConfigError(f"--frames must be at most {MAX_VIDEOS}, got {args.frames}")
     want_video = args.video > 0 or args.video_failures > 0
     if want_video or args.plots:
         require_viz()
@@ -354,8 +363,7 @@ def _check_suite(args: EvalArgs, want_video: bool) -> None:
     or frames."""
     if args.task is not None or args.target_halfwidth is not None:
         raise ConfigError("--suite runs every task of the suite: drop --task/--target-halfwidth")
-    if args.task_processes < 1:
-        raise ConfigError(f"--task-processes must be >= 1, got {args.task_processes}")
+    processes.check_count(args.task_processes, "--task-processes")
     if want_video or args.plots or args.frames:
         raise ConfigError("--suite writes one report over its tasks: drop --video/--plots/--frames")
     scene_suite(args.scene, args.suite)

@@ -61,6 +61,13 @@ EVAL = [
     (["--compare-with", "{in}/successes_x.json"], "'x'"),
     (["--out", NOT_A_DIR], "/etc/hostname"),
     (["--batching", "sometimes"], "'sometimes'"),
+    (["--factor-bins", "1000000000000"], "1000000000000"),
+    (["--refill-every", "100000000000000000000"], "100000000000000000000"),
+    (["--processes", "100000", "--backend", "mjx"], "100000"),
+    (["--video", "100000000000000000000"], "100000000000000000000"),
+    (["--frames", "100000000000000000000"], "100000000000000000000"),
+    (["--scene", "metaworld", "--suite", "mt10", "--task-processes", "100000"], "100000"),
+    (["--target-halfwidth", "0.1", "--max-episodes", "1000000000000000"], "1000000000000000"),
     (["--factor-bins", "x"], "'x'"),
     # a flag a suite cannot honour is refused, never recorded in the command and ignored
     (["--scene", "metaworld_mjx", "--suite", "mt10", "--factor-bins", "3"], "--factor-bins"),

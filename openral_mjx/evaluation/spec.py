@@ -12,9 +12,10 @@ import dataclasses
 
 from openral_mjx.core.errors import ConfigError
 from openral_mjx.evaluation.sequential import SequentialRule, sequential_rule
-from openral_mjx.runner import check_batching, check_counts, check_seeds
+from openral_mjx.runner import MAX_STEPS, check_batching, check_counts, check_seeds
 
 FACTOR_BINS = 5  # equal-count bins per episode factor in a report's breakdown
+MAX_FACTOR_BINS = 1000
 # Upper bounds of the build settings, refused before anything is built: threads each start an
 # OS thread, a contact buffer is allocated per env, and no host has more devices.
 MAX_SETTING = {"devices": 4096, "threads": 4096, "contacts_per_env": 65536}
@@ -48,6 +49,14 @@ class RunSpec:
         self._counts()
         if self.factor_bins < 1:
             raise ConfigError(f"factor_bins must be a positive integer, got {self.factor_bins}")
+        if self.factor_bins > MAX_FACTOR_BINS:
+            raise ConfigError(
+                f"factor_bins must be at most {MAX_FACTOR_BINS}, got {self.factor_bins}"
+            )
+        if self.refill_every > MAX_STEPS:
+            raise ConfigError(
+                f"refill_every must be at most {MAX_STEPS:,}, got {self.refill_every}"
+            )
         for name in ("devices", "threads", "contacts_per_env"):
             value = getattr(self, name)
             if value is not None and value < 1:

@@ -5,7 +5,7 @@ fields, frames, metadata). `EvalReport` aggregates a run; `SCHEMA_VERSION` chang
 field's meaning or presence changes. Reports of `READABLE_VERSIONS` load (keeping their own
 version); any other version is an error. Reading validates: the dataclasses below are the
 typed model pydantic checks a report's JSON against (`report.validation`), then the counts
-are checked to add up (`check_counts`).
+are checked to add up (`check_totals`).
 """
 
 from __future__ import annotations
@@ -218,7 +218,7 @@ class EvalReport:
         that do not add up is a `ConfigError` naming the field."""
         _check_version(data)
         report = validate_data(_adapter(), data)
-        check_counts(report)
+        check_totals(report)
         return report
 
     @classmethod
@@ -230,7 +230,7 @@ class EvalReport:
             raise ConfigError(f"not valid JSON: {e}") from None
         _check_version(data)
         report = validate_json(_adapter(), text)
-        check_counts(report)
+        check_totals(report)
         return report
 
 
@@ -247,7 +247,7 @@ def _adapter() -> TypeAdapter[EvalReport]:
     return TypeAdapter(EvalReport)
 
 
-def check_counts(report: EvalReport) -> None:
+def check_totals(report: EvalReport) -> None:
     """What the types cannot say: the totals agree with the episodes and the per-task rows
     (`ConfigError` naming the field)."""
     n, k = report.n_episodes, report.successes

@@ -16,13 +16,14 @@ import dataclasses
 import datetime as dt
 import re
 import sys
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Annotated
 
 import tyro
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
-from openral_mjx.cli.common import command_line, guarded, stderr
+from openral_mjx.cli.common import command_line, guarded, parse, stderr
 from openral_mjx.core.errors import ConfigError
 from openral_mjx.core.files import check_writable
 from openral_mjx.core.options import load_yaml, parse_overrides
@@ -44,9 +45,11 @@ from openral_mjx.scenes import (
     SCENES,
     Scene,
     check_robot,
+    check_task,
     resolve_scene_backend,
     scene_options,
     scene_suite,
+    scripted_policy,
 )
 from openral_mjx.scenes.factor_ranges import parse_factors
 from openral_mjx.stats import compare_reports, format_breakdown, format_comparison
@@ -169,6 +172,10 @@ class EvalArgs:
 
 # ---- validate --------------------------------------------------------------------------------
 
+# The most episodes re-simulated for videos or sensor frames (each is a file, or a slice of
+# one, held in memory while it is written).
+MAX_VIDEOS = 1000
+
 
 @dataclasses.dataclass(frozen=True)
 class EvalPlan:
@@ -226,6 +233,11 @@ def validate(args: EvalArgs) -> EvalPlan:
         )
     if args.frames < 0:
         raise ConfigError(f"frames must be >= 0, got {args.frames}")
+    for flag, count in (("--video", args.video), ("--video-failures", args.video_failures)):
+        if count > MAX_VIDEOS:
+            raise ConfigError(f"{flag} must be at most {MAX_VIDEOS}, got {count}")
+    if args.frames > MAX_VIDEOS:
+        raise ConfigError(f"--frames must be at most {MAX_VIDEOS}, got {args.frames}")
     want_video = args.video > 0 or args.video_failures > 0
     if want_video or args.plots:
         require_viz()
@@ -240,6 +252,11 @@ def validate(args: EvalArgs) -> EvalPlan:
     elif args.task_processes != 1:
         raise ConfigError("--task-processes runs the tasks of a --suite at once: give --suite")
     _check_randomize(args, want_video)
+    policy = scripted_policy(args.scene, args.policy)
+    if policy != args.policy:
+        note = f"note: scene {args.scene!r} has no scripted policy of its own: running {policy}"
+        print(note, file=sys.stderr)
+        args = dataclasses.replace(args, policy=policy)
     out = args.out or _default_out(args)
     check_writable(out)
     baseline = None
@@ -319,7 +336,7 @@ def _scene_options(args: EvalArgs) -> dict:
     if args.config is not None:
         options.update(load_yaml(args.config))
     options.update(parse_overrides(args.opt))
-    if args.task is not None:
+    if check_task(args.scene, args.task):
         options["task"] = args.task
     if args.robot is not None:
         ROBOTS.get(args.robot)
@@ -361,8 +378,7 @@ def _check_suite(args: EvalArgs, want_video: bool) -> None:
     or frames."""
     if args.task is not None or args.target_halfwidth is not None:
         raise ConfigError("--suite runs every task of the suite: drop --task/--target-halfwidth")
-    if args.task_processes < 1:
-        raise ConfigError(f"--task-processes must be >= 1, got {args.task_processes}")
+    processes.check_count(args.task_processes, "--task-processes")
     if want_video or args.plots or args.frames:
         raise ConfigError("--suite writes one report over its tasks: drop --video/--plots/--frames")
     scene_suite(args.scene, args.suite)
@@ -726,8 +742,10 @@ def run(args: EvalArgs) -> int:
     return 0
 
 
-def main() -> None:
-    args = tyro.cli(EvalArgs, prog="python -m openral_mjx.eval")
+def main(argv: Sequence[str] | None = None) -> None:
+    """The command: `argv` (default: the process's arguments) -> exit code."""
+    prog = "python -m openral_mjx.eval"
+    args = parse(lambda: tyro.cli(EvalArgs, prog=prog, args=argv), prog)
     raise SystemExit(guarded(lambda: run(args)))
 
 

@@ -3,15 +3,29 @@
 Field names follow the predecessor's `EpisodeResult` (success, steps, total_reward, latency
 fields, frames, metadata). `EvalReport` aggregates a run; `SCHEMA_VERSION` changes whenever a
 field's meaning or presence changes. Reports of `READABLE_VERSIONS` load (keeping their own
-version); any other version is an error.
+version); any other version is an error. Reading validates: the dataclasses below are the
+typed model pydantic checks a report's JSON against (`report.validation`), then the counts
+are checked to add up (`check_totals`).
 """
 
 from __future__ import annotations
 
 import dataclasses
-from typing import Any
+import json
+from functools import cache
+from typing import Any, ClassVar
+
+from pydantic import ConfigDict, TypeAdapter
 
 from openral_mjx.core.errors import ConfigError
+from openral_mjx.report.validation import (
+    STRICT,
+    Count,
+    Fraction,
+    check,
+    validate_data,
+    validate_json,
+)
 
 SCHEMA_VERSION = "openral_mjx.eval_report/5"
 # /2 has the same fields as /3; /3 only widened what the latency fields and metadata may hold
@@ -47,13 +61,15 @@ class EpisodeResult:
     episode's end, stored as `array` in the `.npz` `file` beside the report.
     """
 
+    __pydantic_config__: ClassVar[ConfigDict] = STRICT
+
     success: bool
-    steps: int
+    steps: Count
     total_reward: float
     mean_step_latency_ms: float
     max_step_latency_ms: float
     latency_budget_ms: float
-    budget_violations: int
+    budget_violations: Count
     frames: list[Any] | None = None
     metadata: dict[str, Any] = dataclasses.field(default_factory=dict)
 
@@ -75,12 +91,14 @@ class TaskRow:
     """Per-task aggregate (one row per task; a single-task scene has one); `instruction` is
     the task in natural language (the scene's `instruction`), None in reports before /5."""
 
+    __pydantic_config__: ClassVar[ConfigDict] = STRICT
+
     task: str
-    n_episodes: int
-    successes: int
-    success_rate: float
-    ci_low: float
-    ci_high: float
+    n_episodes: Count
+    successes: Count
+    success_rate: Fraction
+    ci_low: Fraction
+    ci_high: Fraction
     instruction: str | None = None
 
 
@@ -89,14 +107,16 @@ class BreakdownRow:
     """Success within one bin of one episode factor: episodes with `low <= value < high`
     (`<= high` in a factor's last bin), with a Wilson interval at the report's confidence."""
 
+    __pydantic_config__: ClassVar[ConfigDict] = STRICT
+
     factor: str
     low: float
     high: float
-    n: int
-    successes: int
-    rate: float
-    ci_low: float
-    ci_high: float
+    n: Count
+    successes: Count
+    rate: Fraction
+    ci_low: Fraction
+    ci_high: Fraction
 
 
 @dataclasses.dataclass
@@ -109,10 +129,12 @@ class SequentialInfo:
     design (`rule`), not a fixed-n interval.
     """
 
+    __pydantic_config__: ClassVar[ConfigDict] = STRICT
+
     target_halfwidth: float
-    max_episodes: int
-    chunk: int
-    looks: int
+    max_episodes: Count
+    chunk: Count
+    looks: Count
     stopped: str
     halfwidth: float
     rule: str
@@ -131,23 +153,25 @@ class EvalReport:
     it (None for a suite, whose `per_task` rows carry each task's, and in reports before /5).
     """
 
+    __pydantic_config__: ClassVar[ConfigDict] = STRICT
+
     scene: str
     task: str
     robot: str
     policy: str
     backend: str
     device: str
-    n_episodes: int
-    n_envs: int
-    seed: int
-    max_steps: int
-    successes: int
-    success_rate: float
-    ci_low: float
-    ci_high: float
-    confidence: float
+    n_episodes: Count
+    n_envs: Count
+    seed: Count
+    max_steps: Count
+    successes: Count
+    success_rate: Fraction
+    ci_low: Fraction
+    ci_high: Fraction
+    confidence: Fraction
     ci_method: str
-    diverged: int
+    diverged: Count
     per_task: list[TaskRow]
     breakdown: list[BreakdownRow]
     env_steps_per_s: float
@@ -189,40 +213,55 @@ class EvalReport:
         return out
 
     @classmethod
-    def from_dict(cls, data: dict[str, Any]) -> EvalReport:
-        """Strict: another schema version, a missing or an unknown field is a `ConfigError`."""
-        version = data.get("schema_version") if isinstance(data, dict) else None
-        if version not in READABLE_VERSIONS:
-            raise ConfigError(
-                f"schema {version!r} is not supported; valid: {', '.join(READABLE_VERSIONS)}"
-            )
-        data = dict(data)
-        for name in ("per_task", "breakdown", "episodes"):
-            if name in data and not isinstance(data[name], list):
-                raise ConfigError(f"{name} must be a list, got {type(data[name]).__name__}")
-        for name, row in (("per_task", TaskRow), ("breakdown", BreakdownRow)):
-            if name in data:
-                data[name] = [_build(row, r, name) for r in data[name]]
-        if data.get("sequential") is not None:
-            data["sequential"] = _build(SequentialInfo, data["sequential"], "sequential")
-        if "episodes" in data:
-            data["episodes"] = [_build(EpisodeResult, e, "episodes") for e in data["episodes"]]
-        return _build(cls, data, "report")
+    def from_dict(cls, data: Any) -> EvalReport:
+        """Strict: another schema version, a wrong type, a missing or unknown field, or counts
+        that do not add up is a `ConfigError` naming the field."""
+        _check_version(data)
+        report = validate_data(_adapter(), data)
+        check_totals(report)
+        return report
+
+    @classmethod
+    def from_json(cls, text: str) -> EvalReport:
+        """`from_dict` of JSON `text`, validated from the text itself (no second encoding)."""
+        try:
+            data = json.loads(text)
+        except json.JSONDecodeError as e:
+            raise ConfigError(f"not valid JSON: {e}") from None
+        _check_version(data)
+        report = validate_json(_adapter(), text)
+        check_totals(report)
+        return report
 
 
-def _build(cls: type, data: Any, where: str) -> Any:
-    """`cls(**data)`, or a `ConfigError` naming unknown and missing fields."""
-    if not isinstance(data, dict):
-        raise ConfigError(f"{where}: expected an object, got {type(data).__name__}")
-    fields = dataclasses.fields(cls)
-    unknown = sorted(set(data) - {f.name for f in fields})
-    missing = [
-        f.name
-        for f in fields
-        if f.name not in data
-        and f.default is dataclasses.MISSING
-        and f.default_factory is dataclasses.MISSING
-    ]
-    if unknown or missing:
-        raise ConfigError(f"{where}: unknown fields {unknown}, missing fields {missing}")
-    return cls(**data)
+def _check_version(data: Any) -> None:
+    version = data.get("schema_version") if isinstance(data, dict) else None
+    if version not in READABLE_VERSIONS:
+        raise ConfigError(
+            f"schema {version!r} is not supported; valid: {', '.join(READABLE_VERSIONS)}"
+        )
+
+
+@cache
+def _adapter() -> TypeAdapter[EvalReport]:
+    return TypeAdapter(EvalReport)
+
+
+def check_totals(report: EvalReport) -> None:
+    """What the types cannot say: the totals agree with the episodes and the per-task rows
+    (`ConfigError` naming the field)."""
+    n, k = report.n_episodes, report.successes
+    check(k <= n, f"successes {k} > n_episodes {n}")
+    check(report.diverged <= n, f"diverged {report.diverged} > n_episodes {n}")
+    check(len(report.episodes) == n, f"episodes holds {len(report.episodes)}, n_episodes is {n}")
+    won = sum(e.success for e in report.episodes)
+    check(won == k, f"successes is {k}, but {won} episodes have success true")
+    rate = k / n if n else 0.0
+    check(abs(report.success_rate - rate) <= 1e-9, f"success_rate {report.success_rate} != {rate}")
+    check(report.ci_low <= report.ci_high, f"ci_low {report.ci_low} > ci_high {report.ci_high}")
+    for i, row in enumerate(report.per_task):
+        check(row.successes <= row.n_episodes, f"per_task[{i}].successes > its n_episodes")
+    rows = sum(r.n_episodes for r in report.per_task)
+    check(rows == n, f"per_task rows hold {rows} episodes, n_episodes is {n}")
+    for i, row in enumerate(report.breakdown):
+        check(row.successes <= row.n, f"breakdown[{i}].successes > its n")

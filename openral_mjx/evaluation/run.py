@@ -17,6 +17,7 @@ from openral_mjx.evaluation.episodes import episode_results
 from openral_mjx.evaluation.provenance import device_description, package_versions
 from openral_mjx.evaluation.spec import RunSpec
 from openral_mjx.physics import PhysicsSettings
+from openral_mjx.physics.mj_warnings import count_warnings
 from openral_mjx.policies import Policy, make_policy
 from openral_mjx.policies.lerobot import implied_camera_options
 from openral_mjx.report import EvalReport, SequentialInfo, TaskRow
@@ -190,7 +191,7 @@ def evaluate_spec(
     rule, n_episodes = spec.stopping_rule(), spec.episodes
     seed, step_rewards = spec.seed, spec.step_rewards
     owned = contextlib.ExitStack()
-    with owned:  # on an error, close what this call built (worker processes)
+    with owned, count_warnings() as warned:  # on an error, close what this call built
         if isinstance(scene, str):
             if isinstance(policy, str):  # a lerobot policy's cameras, unless options name them
                 implied = implied_camera_options(policy, SCENES.get(scene).options_cls, options)
@@ -317,5 +318,6 @@ def evaluate_spec(
         episodes=episodes,
         sequential=sequential,
         instruction=scene.instruction,
+        mujoco_warnings=dict(sorted(warned.items())),
     )
     return Evaluation(report, scene, pol, params, requested, arrays, timing, resources)

@@ -13,15 +13,18 @@ from typing import Any
 
 from openral_mjx.core.errors import ConfigError
 
-SCHEMA_VERSION = "openral_mjx.eval_report/5"
+SCHEMA_VERSION = "openral_mjx.eval_report/6"
 # /2 has the same fields as /3; /3 only widened what the latency fields and metadata may hold
 # (a torch policy's own latencies, a host worker's error), so a /2 report reads as it was.
 # /4 added `live_env_steps_per_s` (continuous batching), None when read from /2 or /3.
 # /5 added `instruction` (the report's and each per-task row's), None when read from /2../4.
+# /6 added `partial` (an interrupted run's report of what finished; None: complete) and
+# `mujoco_warnings` (MuJoCo's warnings by kind), None and {} when read from /2../5.
 READABLE_VERSIONS = (
     "openral_mjx.eval_report/2",
     "openral_mjx.eval_report/3",
     "openral_mjx.eval_report/4",
+    "openral_mjx.eval_report/5",
     SCHEMA_VERSION,
 )
 
@@ -119,6 +122,27 @@ class SequentialInfo:
 
 
 @dataclasses.dataclass
+class PartialInfo:
+    """Why a report holds only part of its run, and which part (`eval --resume` finishes it).
+
+    `reason` is e.g. "interrupted (SIGINT)" or "terminated (SIGTERM)"; `done` of `total`
+    `unit`s finished ("episodes": always the first `done` seeds, a contiguous prefix; "tasks"
+    and "points": `finished` names them, as the suite lists its tasks and as `%g` formats a
+    sweep's values). The report's counts and intervals are over what finished only.
+    """
+
+    reason: str
+    unit: str
+    done: int
+    total: int
+    finished: list[str] = dataclasses.field(default_factory=list)
+
+    def describe(self) -> str:
+        """E.g. "2 of 4 points"."""
+        return f"{self.done} of {self.total} {self.unit}"
+
+
+@dataclasses.dataclass
 class EvalReport:
     """Aggregate of one evaluation run; `episodes` holds every `EpisodeResult`.
 
@@ -129,6 +153,9 @@ class EvalReport:
     `live_env_steps_per_s` only the steps of running episodes, `episodes_per_s` episodes.
     `instruction` is the task in natural language, as language-conditioned policies were told
     it (None for a suite, whose `per_task` rows carry each task's, and in reports before /5).
+    `partial` is None for a complete run, else what an interrupted one kept (`PartialInfo`);
+    `mujoco_warnings` counts MuJoCo C's warnings during the run by kind (e.g. "BADQACC"),
+    each as MuJoCo raises it (once per env state it finds bad), counted instead of printed.
     """
 
     scene: str
@@ -163,6 +190,8 @@ class EvalReport:
     sequential: SequentialInfo | None = None
     live_env_steps_per_s: float | None = None
     instruction: str | None = None
+    partial: PartialInfo | None = None
+    mujoco_warnings: dict[str, int] = dataclasses.field(default_factory=dict)
     schema_version: str = SCHEMA_VERSION
 
     def summary(self) -> str:
@@ -205,6 +234,8 @@ class EvalReport:
                 data[name] = [_build(row, r, name) for r in data[name]]
         if data.get("sequential") is not None:
             data["sequential"] = _build(SequentialInfo, data["sequential"], "sequential")
+        if data.get("partial") is not None:
+            data["partial"] = _build(PartialInfo, data["partial"], "partial")
         if "episodes" in data:
             data["episodes"] = [_build(EpisodeResult, e, "episodes") for e in data["episodes"]]
         return _build(cls, data, "report")

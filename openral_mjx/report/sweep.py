@@ -15,8 +15,12 @@ from typing import Any
 
 from openral_mjx.core.errors import ConfigError
 from openral_mjx.core.files import write_text_atomic
+from openral_mjx.report.schema import PartialInfo
 
-SWEEP_SCHEMA_VERSION = "openral_mjx.sweep/1"
+SWEEP_SCHEMA_VERSION = "openral_mjx.sweep/2"
+# /2 added `partial` (an interrupted sweep's finished points) and `mujoco_warnings`; a /1
+# report reads with None and {}.
+READABLE_SWEEP_VERSIONS = ("openral_mjx.sweep/1", SWEEP_SCHEMA_VERSION)
 
 
 @dataclasses.dataclass
@@ -55,7 +59,9 @@ class SweepStep:
 class SweepReport:
     """A sweep of `factor` (``NAME=LOW:HIGH:N`` as given; `relative`: multiples of the
     model's values) on seeds `seed .. seed + n_episodes - 1`, with `randomize` (the other
-    factors, drawn per seed as in any randomised run) held the same at every point."""
+    factors, drawn per seed as in any randomised run) held the same at every point.
+    `partial` (see `PartialInfo`): an interrupted sweep's report of its finished points, the
+    first ones of the grid; `mujoco_warnings`: MuJoCo's warnings by kind over every point."""
 
     scene: str
     task: str
@@ -77,6 +83,8 @@ class SweepReport:
     command: str
     created_at: str
     versions: dict[str, str]
+    partial: PartialInfo | None = None
+    mujoco_warnings: dict[str, int] = dataclasses.field(default_factory=dict)
     schema_version: str = SWEEP_SCHEMA_VERSION
 
     def to_dict(self) -> dict[str, Any]:
@@ -85,12 +93,15 @@ class SweepReport:
     @classmethod
     def from_dict(cls, data: Any) -> SweepReport:
         """Strict: another schema version, a missing or an unknown field is a `ConfigError`."""
-        if not isinstance(data, dict) or data.get("schema_version") != SWEEP_SCHEMA_VERSION:
-            got = data.get("schema_version") if isinstance(data, dict) else None
+        got = data.get("schema_version") if isinstance(data, dict) else None
+        if got not in READABLE_SWEEP_VERSIONS:
             raise ConfigError(
-                f"sweep schema {got!r} is not supported; valid: {SWEEP_SCHEMA_VERSION}"
+                f"sweep schema {got!r} is not supported; valid: "
+                f"{', '.join(READABLE_SWEEP_VERSIONS)}"
             )
         data = dict(data)
+        if data.get("partial") is not None:
+            data["partial"] = _build(PartialInfo, data["partial"], "partial")
         data["points"] = [_build(SweepPoint, p, "points") for p in data.get("points", [])]
         data["steps"] = [_build(SweepStep, s, "steps") for s in data.get("steps", [])]
         return _build(cls, data, "sweep report")

@@ -1,12 +1,13 @@
 """MuJoCo C's warnings, counted by kind instead of printed and logged.
 
-By default MuJoCo prints every warning it raises ("Nan, Inf or huge value in QACC ..."), once
-per env state it finds bad, so a diverging batch floods the terminal, and appends each to
-`MUJOCO_LOG.TXT` in the current directory. `count_warnings` installs a user warning handler
-(which replaces both) for as long as it is open and counts each message by its `mjtWarning`
-kind (`BADQACC`, `CONTACTFULL`, ...; `OTHER` for a message of no kind, e.g. a model
-compiler's). Counters nest: every open one counts every warning. MuJoCo calls the handler
-from its rollout threads too, so counting takes a lock.
+By default MuJoCo prints the warnings it raises ("Nan, Inf or huge value in QACC ..."; the
+first of each kind per `MjData` since its last reset, so a diverging batch stepped through
+`rollout`'s per-thread data prints many) and appends each to `MUJOCO_LOG.TXT` in the current
+directory. `count_warnings` installs a user warning handler (which replaces both) while it is
+open and counts each message by its `mjtWarning` kind (`BADQACC`, `CONTACTFULL`, ...; `OTHER`
+for a message of no kind): the counts are of the messages MuJoCo would have printed. Counters
+nest: every open one counts every warning. MuJoCo calls the handler from its rollout threads
+too, so counting takes a lock.
 """
 
 from __future__ import annotations
@@ -70,7 +71,7 @@ def count_warnings() -> Iterator[collections.Counter[str]]:
         yield counts
     finally:
         with _LOCK:
-            _OPEN.remove(counts)
+            del _OPEN[next(i for i, c in enumerate(_OPEN) if c is counts)]  # not by ==
             if not _OPEN:
                 mujoco.set_mju_user_warning(_PREVIOUS.pop())
 

@@ -154,8 +154,8 @@ class EvalReport:
     `instruction` is the task in natural language, as language-conditioned policies were told
     it (None for a suite, whose `per_task` rows carry each task's, and in reports before /5).
     `partial` is None for a complete run, else what an interrupted one kept (`PartialInfo`);
-    `mujoco_warnings` counts MuJoCo C's warnings during the run by kind (e.g. "BADQACC"),
-    each as MuJoCo raises it (once per env state it finds bad), counted instead of printed.
+    `mujoco_warnings` counts MuJoCo C's warnings during the run by kind (e.g. "BADQACC"): the
+    messages MuJoCo would have printed (see `physics.mj_warnings`), counted instead.
     """
 
     scene: str

@@ -152,9 +152,9 @@ class EvalArgs:
     compile_cache: bool = True
     """Use JAX's persistent compilation cache (~/.cache/openral_mjx/jax)."""
     resume: bool = False
-    """Finish the --sweep or --suite whose partial report (written at Ctrl-C or SIGTERM) is
-    at --out: give the interrupted run's arguments; its finished points or tasks are kept,
-    the rest run."""
+    """Finish the --sweep, --suite or --target-halfwidth run whose partial report (written at
+    Ctrl-C or SIGTERM) is at --out: give the interrupted run's arguments; its finished points,
+    tasks or chunks of seeds are kept, the rest run."""
     list: bool = False
     """List scenes, policies, robots and backends, then exit."""
 
@@ -251,8 +251,13 @@ def validate(args: EvalArgs) -> EvalPlan:
 def _resume_from(args: EvalArgs, command: str) -> EvalReport | SweepReport:
     """The partial report at --out that --resume picks up, checked to be one this very
     command wrote (same arguments, so the same seeds, options and grid)."""
-    if args.sweep is None and args.suite is None:
-        raise ConfigError("--resume finishes an interrupted --sweep or --suite: give one")
+    if args.sweep is None and args.suite is None and args.target_halfwidth is None:
+        raise ConfigError(
+            "--resume finishes an interrupted --sweep, --suite or --target-halfwidth run: "
+            "give its arguments"
+        )
+    if args.video or args.video_failures or args.frames or args.plots:
+        raise ConfigError("--resume writes the report only: drop --video/--frames/--plots")
     if args.out is None:
         raise ConfigError("--resume needs --out: the partial report to pick up from")
     report = load_sweep(args.out) if args.sweep is not None else load_report(args.out)
@@ -538,7 +543,13 @@ def execute(
                 on_chunk=on_chunk,
                 resume=plan.resume if isinstance(plan.resume, SweepReport) else None,
             )
-        evaluation = evaluate_spec(built.scene, args.policy, plan.spec, on_chunk=on_chunk)
+        evaluation = evaluate_spec(
+            built.scene,
+            args.policy,
+            plan.spec,
+            on_chunk=on_chunk,
+            resume=plan.resume if isinstance(plan.resume, EvalReport) else None,
+        )
     owned.enter_context(evaluation)
     return evaluation
 

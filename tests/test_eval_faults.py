@@ -115,7 +115,7 @@ def test_sigterm_keeps_the_finished_point_and_resume_checks_the_command(
     code, _, err = run_cli(monkeypatch, capsys, *SWEEP, "--resume")
     assert code == 2 and err == "error: --resume needs --out: the partial report to pick up from\n"
     code, _, err = run_cli(monkeypatch, capsys, *COMMON, "--out", str(part), "--resume")
-    assert code == 2 and "--resume finishes an interrupted --sweep or --suite" in err
+    assert code == 2 and "--resume finishes an interrupted --sweep, --suite or" in err
     complete = tmp_path / "complete.json"
     save_sweep(dataclasses.replace(load_sweep(part), partial=None), complete)
     code, _, err = run_cli(monkeypatch, capsys, *SWEEP, "--out", str(complete), "--resume")
@@ -157,6 +157,40 @@ def test_interrupted_suite_resumes_to_the_uninterrupted_result(monkeypatch, caps
     assert [(r.n_episodes, r.successes) for r in resumed.per_task] == [
         (r.n_episodes, r.successes) for r in expected.per_task
     ]
+
+
+@pytest.mark.heavy  # three episode programs compiled on c
+def test_interrupted_sequential_run_keeps_a_prefix_and_resumes(monkeypatch, capsys, tmp_path):
+    """Zero policy, chunks of 4 seeds, target half-width 0.2: the uninterrupted run stops
+    after 8 episodes. Stopped as the second chunk ends (before its look), the partial report
+    keeps the first chunk only; resumed, the run looks after 8 episodes and stops there."""
+    argv = ["--backend", "c", "--n-envs", "4", "--max-steps", "3", "--threads", "1"]
+    argv += ["--policy", "zero", "--batching", "chunks"]
+    argv += ["--target-halfwidth", "0.2", "--max-episodes", "12"]
+    whole, part = tmp_path / "whole.json", tmp_path / "part.json"
+    assert run_cli(monkeypatch, capsys, *argv, "--out", str(whole))[0] == 0
+
+    with monkeypatch.context() as m:
+        stop_at(m, "evaluate_spec", "on_chunk", 8, "SIGINT")
+        code, _, err = run_cli(m, capsys, *argv, "--out", str(part))
+    assert code == 130 and "kept 4 of 12 episodes" in err.strip().splitlines()[-1]
+    kept = load_report(part)
+    assert kept.n_episodes == 4 and [e.metadata["seed"] for e in kept.episodes] == [0, 1, 2, 3]
+    assert kept.sequential.stopped == "interrupted" and kept.partial.unit == "episodes"
+
+    assert run_cli(monkeypatch, capsys, *argv, "--out", str(part), "--resume")[0] == 0
+    resumed, expected = load_report(part), load_report(whole)
+    assert resumed.partial is None and resumed.n_episodes == expected.n_episodes == 8
+    per_seed = [
+        [(e.metadata["seed"], e.success, e.steps, e.total_reward) for e in r.episodes]
+        for r in (resumed, expected)
+    ]
+    assert per_seed[0] == per_seed[1]
+    assert (resumed.ci_low, resumed.ci_high, resumed.sequential.looks) == (
+        expected.ci_low,
+        expected.ci_high,
+        expected.sequential.looks,
+    )
 
 
 def test_stop_pool_ends_running_task_processes():

@@ -715,7 +715,8 @@ def run(args: EvalArgs) -> int:
         processes.initialize()  # before anything touches a device
     plan = validate(args)
     if launcher:
-        return processes.launch("openral_mjx.eval", sys.argv[1:], args.processes)
+        with signals_raise():  # SIGTERM too ends the job's processes (launch stops them)
+            return processes.launch("openral_mjx.eval", sys.argv[1:], args.processes)
     # SIGTERM stops a run as Ctrl-C does; MuJoCo's warnings are counted, not printed or logged
     with signals_raise(), count_warnings() as warned:
         try:

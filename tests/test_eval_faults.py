@@ -198,12 +198,10 @@ def test_stop_pool_ends_running_task_processes():
     pool = concurrent.futures.ProcessPoolExecutor(
         1, mp_context=multiprocessing.get_context("spawn")
     )
-    future = pool.submit(time.sleep, 120)
-    deadline = time.monotonic() + 60
-    while not future.running() and time.monotonic() < deadline:
-        time.sleep(0.05)
+    worker = pool.submit(os.getpid).result(timeout=60)  # the process is up and taking work
+    pool.submit(time.sleep, 120)
     processes = list(pool._processes.values())
-    assert future.running() and processes
+    assert [p.pid for p in processes] == [worker]
     start = time.monotonic()
     suite_module.stop_pool(pool)
     assert time.monotonic() - start < 10

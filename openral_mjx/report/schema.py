@@ -141,6 +141,10 @@ class PartialInfo:
         """E.g. "2 of 4 points"."""
         return f"{self.done} of {self.total} {self.unit}"
 
+    def summary(self) -> str:
+        """E.g. "partial: interrupted (SIGINT), 2 of 4 points"."""
+        return f"partial: {self.reason}, {self.describe()}"
+
 
 @dataclasses.dataclass
 class EvalReport:
@@ -203,6 +207,7 @@ class EvalReport:
             f"[{100 * self.ci_low:.1f}, {100 * self.ci_high:.1f}] ({self.ci_method} "
             f"{round(100 * self.confidence)}%), {self.successes}/{self.n_episodes} episodes"
             f"{div}, {self.env_steps_per_s:,.0f} env-steps/s, compile {self.compile_s:.1f} s"
+            + ("" if self.partial is None else f"; {self.partial.summary()}")
         )
 
     def to_dict(self) -> dict[str, Any]:

@@ -109,6 +109,8 @@ class SweepReport:
     def summary(self) -> str:
         """The table the CLI prints: rate per value, then where success changes."""
         lines = [f"{self.scene}/{self.policy} on {self.backend}: sweep {self.sweep}"]
+        if self.partial is not None:
+            lines[0] += f" ({self.partial.summary()})"
         for p in self.points:
             lines.append(
                 f"  {self.factor} = {p.value:<10g} success {100 * p.success_rate:5.1f}% "

@@ -4,7 +4,7 @@ Python turns SIGINT into `KeyboardInterrupt`; `signals_raise` makes SIGTERM rais
 (a `KeyboardInterrupt` too) and records which signal arrived, so a run can keep what finished
 whichever it was, and the CLI exits with the conventional 128 + signal number. A signal that
 lands inside a host callback reaches the caller as a JAX error: `stop_signal` still names it
-from the record.
+from the record while the handlers are installed.
 """
 
 from __future__ import annotations
@@ -31,8 +31,9 @@ def _raise(signum: int, frame: FrameType | None) -> None:
 @contextlib.contextmanager
 def signals_raise() -> Iterator[None]:
     """Within: SIGINT raises `KeyboardInterrupt`, SIGTERM `Terminated`, each recorded for
-    `stop_signal`; the previous handlers come back after (main thread only: elsewhere a
-    no-op, since Python delivers signals to the main thread)."""
+    `stop_signal`; an exception that leaves the block after a signal leaves it as that stop.
+    The previous handlers come back after (main thread only: elsewhere a no-op, since Python
+    delivers signals to the main thread)."""
     try:
         previous = {s: signal.signal(s, _raise) for s in (signal.SIGINT, signal.SIGTERM)}
     except ValueError:  # not the main thread
@@ -41,9 +42,14 @@ def signals_raise() -> Iterator[None]:
     _SEEN.clear()
     try:
         yield
+    except Exception as e:  # e.g. a JAX error around a signal raised in a host callback
+        if not _SEEN:
+            raise
+        raise (Terminated() if _SEEN[-1] == "SIGTERM" else KeyboardInterrupt()) from e
     finally:
         for s, handler in previous.items():
             signal.signal(s, handler)
+        _SEEN.clear()  # a later error outside is no stop
 
 
 def stop_signal(exc: BaseException) -> str | None:

@@ -16,6 +16,7 @@ from typing import Any, NoReturn, TypeVar
 from rich.console import Console
 
 from openral_mjx.core.errors import ConfigError
+from openral_mjx.core.interrupts import EXIT_CODES, stop_reason, stop_signal
 from openral_mjx.host.pool import INTERRUPTED
 
 T = TypeVar("T")
@@ -29,19 +30,25 @@ def fail(message: str) -> NoReturn:
 
 
 def guarded(main: Callable[[], T]) -> T:
-    """Run `main`, turning user mistakes (`ConfigError`) into a one-line error and exit 2."""
+    """Run `main`, turning user mistakes (`ConfigError`) into a one-line error and exit 2, and
+    a stop by Ctrl-C or SIGTERM into one line and exit 130 or 143."""
     try:
         return main()
     except ConfigError as e:
         fail(str(e))
-    except KeyboardInterrupt:
-        print("interrupted", file=sys.stderr)
-        raise SystemExit(130) from None
-    except Exception:
-        if INTERRUPTED.is_set():  # Ctrl-C inside a host callback reaches us as a JAX error
-            print("interrupted", file=sys.stderr)
-            raise SystemExit(130) from None
-        raise
+    except KeyboardInterrupt as e:
+        _stopped(stop_signal(e) or "SIGINT")
+    except Exception as e:
+        # a signal inside a host callback reaches us as a JAX error
+        signal = stop_signal(e) or ("SIGINT" if INTERRUPTED.is_set() else None)
+        if signal is None:
+            raise
+        _stopped(signal)
+
+
+def _stopped(signal: str) -> NoReturn:
+    print(stop_reason(signal), file=sys.stderr)
+    raise SystemExit(EXIT_CODES[signal]) from None
 
 
 def parse(cli: Callable[[], T], prog: str) -> T:

@@ -27,15 +27,18 @@ from openral_mjx.report.validation import (
     validate_json,
 )
 
-SCHEMA_VERSION = "openral_mjx.eval_report/5"
+SCHEMA_VERSION = "openral_mjx.eval_report/6"
 # /2 has the same fields as /3; /3 only widened what the latency fields and metadata may hold
 # (a torch policy's own latencies, a host worker's error), so a /2 report reads as it was.
 # /4 added `live_env_steps_per_s` (continuous batching), None when read from /2 or /3.
 # /5 added `instruction` (the report's and each per-task row's), None when read from /2../4.
+# /6 added `partial` (an interrupted run's report of what finished; None: complete) and
+# `mujoco_warnings` (MuJoCo's warnings by kind), None and {} when read from /2../5.
 READABLE_VERSIONS = (
     "openral_mjx.eval_report/2",
     "openral_mjx.eval_report/3",
     "openral_mjx.eval_report/4",
+    "openral_mjx.eval_report/5",
     SCHEMA_VERSION,
 )
 
@@ -141,6 +144,33 @@ class SequentialInfo:
 
 
 @dataclasses.dataclass
+class PartialInfo:
+    """Why a report holds only part of its run, and which part (`eval --resume` finishes it).
+
+    `reason` is e.g. "interrupted (SIGINT)" or "terminated (SIGTERM)"; `done` of `total`
+    `unit`s finished ("episodes": always the first `done` seeds, a contiguous prefix; "tasks"
+    and "points": `finished` names them, as the suite lists its tasks and as `%g` formats a
+    sweep's values). The report's counts and intervals are over what finished only.
+    """
+
+    __pydantic_config__: ClassVar[ConfigDict] = STRICT
+
+    reason: str
+    unit: str
+    done: Count
+    total: Count
+    finished: list[str] = dataclasses.field(default_factory=list)
+
+    def describe(self) -> str:
+        """E.g. "2 of 4 points"."""
+        return f"{self.done} of {self.total} {self.unit}"
+
+    def summary(self) -> str:
+        """E.g. "partial: interrupted (SIGINT), 2 of 4 points"."""
+        return f"partial: {self.reason}, {self.describe()}"
+
+
+@dataclasses.dataclass
 class EvalReport:
     """Aggregate of one evaluation run; `episodes` holds every `EpisodeResult`.
 
@@ -151,6 +181,9 @@ class EvalReport:
     `live_env_steps_per_s` only the steps of running episodes, `episodes_per_s` episodes.
     `instruction` is the task in natural language, as language-conditioned policies were told
     it (None for a suite, whose `per_task` rows carry each task's, and in reports before /5).
+    `partial` is None for a complete run, else what an interrupted one kept (`PartialInfo`);
+    `mujoco_warnings` counts MuJoCo C's warnings during the run by kind (e.g. "BADQACC"): the
+    messages MuJoCo would have printed (see `physics.mj_warnings`), counted instead.
     """
 
     __pydantic_config__: ClassVar[ConfigDict] = STRICT
@@ -187,6 +220,8 @@ class EvalReport:
     sequential: SequentialInfo | None = None
     live_env_steps_per_s: float | None = None
     instruction: str | None = None
+    partial: PartialInfo | None = None
+    mujoco_warnings: dict[str, int] = dataclasses.field(default_factory=dict)
     schema_version: str = SCHEMA_VERSION
 
     def summary(self) -> str:
@@ -198,6 +233,7 @@ class EvalReport:
             f"[{100 * self.ci_low:.1f}, {100 * self.ci_high:.1f}] ({self.ci_method} "
             f"{round(100 * self.confidence)}%), {self.successes}/{self.n_episodes} episodes"
             f"{div}, {self.env_steps_per_s:,.0f} env-steps/s, compile {self.compile_s:.1f} s"
+            + ("" if self.partial is None else f"; {self.partial.summary()}")
         )
 
     def to_dict(self) -> dict[str, Any]:

@@ -19,9 +19,13 @@ from pydantic import ConfigDict, TypeAdapter
 from openral_mjx.core.errors import ConfigError
 from openral_mjx.core.files import write_text_atomic
 from openral_mjx.report.io import check_readable
+from openral_mjx.report.schema import PartialInfo
 from openral_mjx.report.validation import STRICT, Count, Fraction, check, validate_data
 
-SWEEP_SCHEMA_VERSION = "openral_mjx.sweep/1"
+SWEEP_SCHEMA_VERSION = "openral_mjx.sweep/2"
+# /2 added `partial` (an interrupted sweep's finished points) and `mujoco_warnings`; a /1
+# report reads with None and {}.
+READABLE_SWEEP_VERSIONS = ("openral_mjx.sweep/1", SWEEP_SCHEMA_VERSION)
 
 
 @dataclasses.dataclass
@@ -64,7 +68,9 @@ class SweepStep:
 class SweepReport:
     """A sweep of `factor` (``NAME=LOW:HIGH:N`` as given; `relative`: multiples of the
     model's values) on seeds `seed .. seed + n_episodes - 1`, with `randomize` (the other
-    factors, drawn per seed as in any randomised run) held the same at every point."""
+    factors, drawn per seed as in any randomised run) held the same at every point.
+    `partial` (see `PartialInfo`): an interrupted sweep's report of its finished points, the
+    first ones of the grid; `mujoco_warnings`: MuJoCo's warnings by kind over every point."""
 
     __pydantic_config__: ClassVar[ConfigDict] = STRICT
 
@@ -88,6 +94,8 @@ class SweepReport:
     command: str
     created_at: str
     versions: dict[str, str]
+    partial: PartialInfo | None = None
+    mujoco_warnings: dict[str, int] = dataclasses.field(default_factory=dict)
     schema_version: str = SWEEP_SCHEMA_VERSION
 
     def to_dict(self) -> dict[str, Any]:
@@ -97,10 +105,11 @@ class SweepReport:
     def from_dict(cls, data: Any) -> SweepReport:
         """Strict: another schema version, a wrong type, a missing or unknown field, or
         outcomes that do not match the counts is a `ConfigError` naming the field."""
-        if not isinstance(data, dict) or data.get("schema_version") != SWEEP_SCHEMA_VERSION:
-            got = data.get("schema_version") if isinstance(data, dict) else None
+        got = data.get("schema_version") if isinstance(data, dict) else None
+        if got not in READABLE_SWEEP_VERSIONS:
             raise ConfigError(
-                f"sweep schema {got!r} is not supported; valid: {SWEEP_SCHEMA_VERSION}"
+                f"sweep schema {got!r} is not supported; valid: "
+                f"{', '.join(READABLE_SWEEP_VERSIONS)}"
             )
         report = validate_data(_adapter(), data)
         for i, p in enumerate(report.points):
@@ -114,6 +123,8 @@ class SweepReport:
     def summary(self) -> str:
         """The table the CLI prints: rate per value, then where success changes."""
         lines = [f"{self.scene}/{self.policy} on {self.backend}: sweep {self.sweep}"]
+        if self.partial is not None:
+            lines[0] += f" ({self.partial.summary()})"
         for p in self.points:
             lines.append(
                 f"  {self.factor} = {p.value:<10g} success {100 * p.success_rate:5.1f}% "

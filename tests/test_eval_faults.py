@@ -135,9 +135,10 @@ def test_interrupted_suite_resumes_to_the_uninterrupted_result(monkeypatch, caps
         return build_scene("tabletop_push", backend="c", n_envs=8, threads=1, randomize=[friction])
 
     monkeypatch.setattr(suite_module, "build_spec_scene", stand_in)
-    argv = [*COMMON, "--scene", "metaworld_mjx", "--suite", "abc", "--policy", "scripted"]
+    argv = [*COMMON, "--scene", "metaworld_mjx", "--suite", "abc", "--policy", "zero"]
     whole, part = tmp_path / "whole.json", tmp_path / "part.json"
-    assert run_cli(monkeypatch, capsys, *argv, "--out", str(whole))[0] == 0
+    code, _, err = run_cli(monkeypatch, capsys, *argv, "--out", str(whole))
+    assert code == 0, err
 
     with monkeypatch.context() as m:
         stop_at(m, "evaluate_suite", "on_task", 1, "SIGINT")

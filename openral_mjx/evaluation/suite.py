@@ -181,6 +181,9 @@ def stop_pool(pool: concurrent.futures.ProcessPoolExecutor) -> None:
         process.terminate()
     for process in processes:
         process.join(timeout=5)
+        if process.is_alive():  # a task that handles SIGTERM itself and goes on
+            process.kill()
+            process.join(timeout=5)
 
 
 def _suite_in_processes(

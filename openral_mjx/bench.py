@@ -12,23 +12,25 @@ from __future__ import annotations
 
 import dataclasses
 import datetime as dt
+from collections.abc import Sequence
 from pathlib import Path
 
 import jax
 import tyro
 
-from openral_mjx.cli.common import command_line, guarded
-from openral_mjx.core.errors import ConfigError
-from openral_mjx.core.files import write_json_atomic
+from openral_mjx.cli.common import command_line, guarded, parse
+from openral_mjx.core.errors import ConfigError, unknown
+from openral_mjx.core.files import check_writable, write_json_atomic
 from openral_mjx.evaluation.provenance import device_description, package_versions
+from openral_mjx.evaluation.spec import MAX_SETTING
 from openral_mjx.perf.batching import compare_batching
 from openral_mjx.perf.rays import run_rays
 from openral_mjx.perf.throughput import measure_throughput
-from openral_mjx.physics import PhysicsSettings, resolve_backend_name
+from openral_mjx.physics import BACKEND_NAMES, PhysicsSettings, resolve_backend_name
 from openral_mjx.physics.c_backend import default_threads
-from openral_mjx.runner import check_batching
+from openral_mjx.runner import MAX_ENVS, MAX_EPISODES, MAX_STEPS, check_batching
 from openral_mjx.runner.compile_cache import enable_compilation_cache
-from openral_mjx.scenes import make_scene
+from openral_mjx.scenes import SCENES, make_scene
 
 
 @dataclasses.dataclass
@@ -169,7 +171,34 @@ def run_batching_bench(args: BenchArgs) -> int:
     return 0
 
 
+def validate(args: BenchArgs) -> None:
+    """What every mode needs, checked before anything is built or measured: the output path
+    (a run's results are not lost to a bad path afterwards) and the sizes that drive memory
+    (each `ConfigError` names the flag and the value)."""
+    SCENES.get(args.scene)
+    if args.backend not in BACKEND_NAMES:
+        raise unknown("backend", args.backend, BACKEND_NAMES)
+    check_writable(args.out)
+    bounds = (
+        ("--n", args.n, MAX_ENVS),
+        ("--c-max-envs", (args.c_max_envs,), MAX_ENVS),
+        ("--episodes", (args.episodes,), MAX_EPISODES),
+        ("--chunk-episodes", (args.chunk_episodes or 1,), MAX_EPISODES),
+        ("--max-steps", (args.max_steps or 1,), MAX_STEPS),
+        ("--repeats", (args.repeats,), 1000),
+        ("--geom-counts", args.geom_counts, 4096),
+        ("--threads", (args.threads or 1,), MAX_SETTING["threads"]),
+        ("--contacts-per-env", (args.contacts_per_env,), MAX_SETTING["contacts_per_env"]),
+        ("--refill-every", (args.refill_every,), MAX_STEPS),
+    )
+    for flag, values, most in bounds:
+        bad = [v for v in values if not 1 <= v <= most]
+        if bad:
+            raise ConfigError(f"{flag} must lie in [1, {most:,}], got {bad[0]}")
+
+
 def run(args: BenchArgs) -> int:
+    validate(args)
     if args.rays:
         return run_rays_bench(args)
     if args.batching:
@@ -226,8 +255,10 @@ def run(args: BenchArgs) -> int:
     return 0
 
 
-def main() -> None:
-    args = tyro.cli(BenchArgs, prog="python -m openral_mjx.bench")
+def main(argv: Sequence[str] | None = None) -> None:
+    """The command: `argv` (default: the process's arguments) -> exit code."""
+    prog = "python -m openral_mjx.bench"
+    args = parse(lambda: tyro.cli(BenchArgs, prog=prog, args=argv), prog)
     raise SystemExit(guarded(lambda: run(args)))
 
 

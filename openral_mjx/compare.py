@@ -6,7 +6,9 @@ matched pair; pairing removes the between-seed variation): exact McNemar test on
 discordant pairs and Newcombe's paired interval for rate_B - rate_A. Reports with no seed in
 common (or with `--unpaired`) are compared as independent samples: two-proportion z test or
 Fisher's exact test, Newcombe's hybrid-score interval. Reports of another scene, task or schema
-version are not comparable: one line on stderr, exit code 2.
+version are not comparable, and a report that fails validation (a wrong type, a missing field,
+counts that do not add up) or the same file given twice is refused: one line on stderr, exit
+code 2.
 
 Example: ``python -m openral_mjx.compare results/random.json results/scripted.json``.
 """
@@ -14,13 +16,15 @@ Example: ``python -m openral_mjx.compare results/random.json results/scripted.js
 from __future__ import annotations
 
 import dataclasses
+import os
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Annotated
 
 import tyro
 
-from openral_mjx.cli.common import guarded
-from openral_mjx.core.errors import unknown
+from openral_mjx.cli.common import guarded, parse
+from openral_mjx.core.errors import ConfigError, unknown
 from openral_mjx.report import load_report
 from openral_mjx.stats import UNPAIRED_TESTS, check_confidence, compare_reports, format_comparison
 
@@ -46,13 +50,20 @@ def run(args: CompareArgs) -> int:
     if args.test not in UNPAIRED_TESTS:
         raise unknown("unpaired test", args.test, UNPAIRED_TESTS)
     a, b = load_report(args.a), load_report(args.b)
+    if os.path.samefile(args.a, args.b):  # also through links and other spellings of a path
+        raise ConfigError(
+            f"reports A and B are the same file ({str(args.a)!r}, {str(args.b)!r}): "
+            "compare two runs"
+        )
     rc = compare_reports(a, b, args.confidence, args.unpaired, args.test)
     print(format_comparison(rc, a, b, (str(args.a), str(args.b))))
     return 0
 
 
-def main() -> None:
-    args = tyro.cli(CompareArgs, prog="python -m openral_mjx.compare")
+def main(argv: Sequence[str] | None = None) -> None:
+    """The command: `argv` (default: the process's arguments) -> exit code."""
+    prog = "python -m openral_mjx.compare"
+    args = parse(lambda: tyro.cli(CompareArgs, prog=prog, args=argv), prog)
     raise SystemExit(guarded(lambda: run(args)))
 
 

@@ -16,27 +16,31 @@ import dataclasses
 import datetime as dt
 import re
 import sys
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Annotated
 
 import tyro
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
-from openral_mjx.cli.common import command_line, guarded, stderr
+from openral_mjx.cli.common import command_line, guarded, parse, stderr
 from openral_mjx.core.errors import ConfigError
 from openral_mjx.core.files import check_writable
+from openral_mjx.core.interrupts import EXIT_CODES, signals_raise
 from openral_mjx.core.options import load_yaml, parse_overrides
 from openral_mjx.evaluation import Evaluation, RunSpec
 from openral_mjx.evaluation.frames import check_frames, record_frames, save_frames
+from openral_mjx.evaluation.partial import Interrupted
 from openral_mjx.evaluation.replay import EpisodeTrace, choose_seeds, trace_episodes
 from openral_mjx.evaluation.run import build_spec_scene, evaluate_spec
 from openral_mjx.evaluation.suite import evaluate_suite, format_tasks, mps_running
 from openral_mjx.evaluation.sweep import parse_sweep, run_sweep
 from openral_mjx.physics import BACKEND_NAMES
+from openral_mjx.physics.mj_warnings import count_warnings, format_warnings
 from openral_mjx.policies import POLICIES
 from openral_mjx.policies.lerobot import implied_camera_options
 from openral_mjx.report import EvalReport, load_report, save_report
-from openral_mjx.report.sweep import SweepReport, save_sweep
+from openral_mjx.report.sweep import SweepReport, load_sweep, save_sweep
 from openral_mjx.robots import ROBOTS
 from openral_mjx.runner import processes
 from openral_mjx.runner.compile_cache import default_cache_dir, enable_compilation_cache
@@ -44,9 +48,11 @@ from openral_mjx.scenes import (
     SCENES,
     Scene,
     check_robot,
+    check_task,
     resolve_scene_backend,
     scene_options,
     scene_suite,
+    scripted_policy,
 )
 from openral_mjx.scenes.factor_ranges import parse_factors
 from openral_mjx.stats import compare_reports, format_breakdown, format_comparison
@@ -163,11 +169,19 @@ class EvalArgs:
     obs_* options)."""
     compile_cache: bool = True
     """Use JAX's persistent compilation cache (~/.cache/openral_mjx/jax)."""
+    resume: bool = False
+    """Finish the --sweep, --suite or --target-halfwidth run whose partial report (written at
+    Ctrl-C or SIGTERM) is at --out: give the interrupted run's arguments; its finished points,
+    tasks or chunks of seeds are kept, the rest run."""
     list: bool = False
     """List scenes, policies, robots and backends, then exit."""
 
 
 # ---- validate --------------------------------------------------------------------------------
+
+# The most episodes re-simulated for videos or sensor frames (each is a file, or a slice of
+# one, held in memory while it is written).
+MAX_VIDEOS = 1000
 
 
 @dataclasses.dataclass(frozen=True)
@@ -185,6 +199,7 @@ class EvalPlan:
     out: Path
     baseline: EvalReport | None
     spec: RunSpec
+    resume: EvalReport | SweepReport | None = None
 
     @property
     def command(self) -> str:
@@ -226,6 +241,11 @@ def validate(args: EvalArgs) -> EvalPlan:
         )
     if args.frames < 0:
         raise ConfigError(f"frames must be >= 0, got {args.frames}")
+    for flag, count in (("--video", args.video), ("--video-failures", args.video_failures)):
+        if count > MAX_VIDEOS:
+            raise ConfigError(f"{flag} must be at most {MAX_VIDEOS}, got {count}")
+    if args.frames > MAX_VIDEOS:
+        raise ConfigError(f"--frames must be at most {MAX_VIDEOS}, got {args.frames}")
     want_video = args.video > 0 or args.video_failures > 0
     if want_video or args.plots:
         require_viz()
@@ -240,6 +260,11 @@ def validate(args: EvalArgs) -> EvalPlan:
     elif args.task_processes != 1:
         raise ConfigError("--task-processes runs the tasks of a --suite at once: give --suite")
     _check_randomize(args, want_video)
+    policy = scripted_policy(args.scene, args.policy)
+    if policy != args.policy:
+        note = f"note: scene {args.scene!r} has no scripted policy of its own: running {policy}"
+        print(note, file=sys.stderr)
+        args = dataclasses.replace(args, policy=policy)
     out = args.out or _default_out(args)
     check_writable(out)
     baseline = None
@@ -251,7 +276,31 @@ def validate(args: EvalArgs) -> EvalPlan:
                 f"vs {args.scene!r}"
             )
     spec = dataclasses.replace(spec, command=_reproduce(args, backend, out))
-    return EvalPlan(args, backend, options, out, baseline, spec)
+    resume = _resume_from(args, spec.command) if args.resume else None
+    return EvalPlan(args, backend, options, out, baseline, spec, resume)
+
+
+def _resume_from(args: EvalArgs, command: str) -> EvalReport | SweepReport:
+    """The partial report at --out that --resume picks up, checked to be one this very
+    command wrote (same arguments, so the same seeds, options and grid)."""
+    if args.sweep is None and args.suite is None and args.target_halfwidth is None:
+        raise ConfigError(
+            "--resume finishes an interrupted --sweep, --suite or --target-halfwidth run: "
+            "give its arguments"
+        )
+    if args.video or args.video_failures or args.frames or args.plots:
+        raise ConfigError("--resume writes the report only: drop --video/--frames/--plots")
+    if args.out is None:
+        raise ConfigError("--resume needs --out: the partial report to pick up from")
+    report = load_sweep(args.out) if args.sweep is not None else load_report(args.out)
+    if report.partial is None:
+        raise ConfigError(f"--resume: report {str(args.out)!r} is complete; nothing to resume")
+    if report.command != command:
+        raise ConfigError(
+            f"--resume: report {str(args.out)!r} was written by another command "
+            f"({report.command}); give its arguments"
+        )
+    return report
 
 
 def _run_spec(args: EvalArgs, backend: str) -> RunSpec:
@@ -319,7 +368,7 @@ def _scene_options(args: EvalArgs) -> dict:
     if args.config is not None:
         options.update(load_yaml(args.config))
     options.update(parse_overrides(args.opt))
-    if args.task is not None:
+    if check_task(args.scene, args.task):
         options["task"] = args.task
     if args.robot is not None:
         ROBOTS.get(args.robot)
@@ -361,8 +410,7 @@ def _check_suite(args: EvalArgs, want_video: bool) -> None:
     or frames."""
     if args.task is not None or args.target_halfwidth is not None:
         raise ConfigError("--suite runs every task of the suite: drop --task/--target-halfwidth")
-    if args.task_processes < 1:
-        raise ConfigError(f"--task-processes must be >= 1, got {args.task_processes}")
+    processes.check_count(args.task_processes, "--task-processes")
     if want_video or args.plots or args.frames:
         raise ConfigError("--suite writes one report over its tasks: drop --video/--plots/--frames")
     scene_suite(args.scene, args.suite)
@@ -504,6 +552,7 @@ def execute(
                 compile_cache=default_cache_dir() if args.compile_cache else None,
                 on_task=on_task,
                 on_chunk=lambda done, total, _: progress.update(bar, completed=done, total=total),
+                resume=plan.resume if isinstance(plan.resume, EvalReport) else None,
             )
         assert built.scene is not None
         if args.sweep is not None:
@@ -523,8 +572,15 @@ def execute(
                 randomize=parse_factors(args.randomize),
                 on_point=on_point,
                 on_chunk=on_chunk,
+                resume=plan.resume if isinstance(plan.resume, SweepReport) else None,
             )
-        evaluation = evaluate_spec(built.scene, args.policy, plan.spec, on_chunk=on_chunk)
+        evaluation = evaluate_spec(
+            built.scene,
+            args.policy,
+            plan.spec,
+            on_chunk=on_chunk,
+            resume=plan.resume if isinstance(plan.resume, EvalReport) else None,
+        )
     owned.enter_context(evaluation)
     return evaluation
 
@@ -712,22 +768,59 @@ def run(args: EvalArgs) -> int:
         processes.initialize()  # before anything touches a device
     plan = validate(args)
     if launcher:
-        return processes.launch("openral_mjx.eval", sys.argv[1:], args.processes)
-    with contextlib.ExitStack() as owned:  # worker processes and policy servers end with the run
-        built = build(plan, owned)
-        result = execute(plan, built, owned)
-        if isinstance(result, SweepReport):
-            show_sweep(plan, result, write_sweep(plan, result))
-        else:
-            written = write(plan, built, result)
-            if written is not None:
-                show(plan, written)
+        with signals_raise():  # SIGTERM too ends the job's processes (launch stops them)
+            return processes.launch("openral_mjx.eval", sys.argv[1:], args.processes)
+    # SIGTERM stops a run as Ctrl-C does; MuJoCo's warnings are counted, not printed or logged
+    with signals_raise(), count_warnings() as warned:
+        try:
+            with contextlib.ExitStack() as owned:  # worker processes, policy servers
+                built = build(plan, owned)
+                result = execute(plan, built, owned)
+                if isinstance(result, SweepReport):
+                    show_sweep(plan, result, write_sweep(plan, result))
+                else:
+                    written = write(plan, built, result)
+                    if written is not None:
+                        show(plan, written)
+        except Interrupted as stop:
+            return keep_partial(plan, stop)
+        finally:
+            if warned:
+                print(warnings_line(warned), file=sys.stderr)
     processes.finish()
     return 0
 
 
-def main() -> None:
-    args = tyro.cli(EvalArgs, prog="python -m openral_mjx.eval")
+def keep_partial(plan: EvalPlan, stop: Interrupted) -> int:
+    """Write an interrupted run's partial report to --out and say, on one line, what it
+    kept and how to finish it; the exit code of the signal (130 SIGINT, 143 SIGTERM)."""
+    report = stop.report
+    assert report.partial is not None
+    if processes.is_primary():
+        if isinstance(report, SweepReport):
+            save_sweep(report, plan.out)
+        else:
+            save_report(report, plan.out)
+        print(
+            f"{report.partial.reason}: kept {report.partial.describe()} in {plan.out}; "
+            f"finish with: {plan.command} --resume",
+            file=sys.stderr,
+        )
+    return EXIT_CODES[stop.signal]
+
+
+def warnings_line(counts: dict[str, int]) -> str:
+    """The one line that stands for MuJoCo's warnings (counted during the run, not shown)."""
+    return (
+        f"mujoco warnings: {format_warnings(counts)} (counted, not printed; by kind in the "
+        "report's mujoco_warnings)"
+    )
+
+
+def main(argv: Sequence[str] | None = None) -> None:
+    """The command: `argv` (default: the process's arguments) -> exit code."""
+    prog = "python -m openral_mjx.eval"
+    args = parse(lambda: tyro.cli(EvalArgs, prog=prog, args=argv), prog)
     raise SystemExit(guarded(lambda: run(args)))
 
 

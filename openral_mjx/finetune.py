@@ -14,16 +14,20 @@ import dataclasses
 import json
 import shlex
 import sys
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 import tyro
 
-from openral_mjx.cli.common import command_line, guarded
-from openral_mjx.core.errors import ConfigError
+from openral_mjx.cli.common import command_line, guarded, parse
+from openral_mjx.core.errors import ConfigError, unknown
+from openral_mjx.core.files import check_writable_dir
 from openral_mjx.core.options import load_yaml, parse_overrides
-from openral_mjx.physics import resolve_backend_name
+from openral_mjx.physics import BACKEND_NAMES, resolve_backend_name
+from openral_mjx.runner import MAX_ENVS, MAX_EPISODES, check_counts, check_seeds
 from openral_mjx.runner.compile_cache import enable_compilation_cache
+from openral_mjx.scenes import SCENES, check_task, scene_options
 from openral_mjx.training import runs
 from openral_mjx.training.bc import BCConfig
 from openral_mjx.training.curves import can_plot, plot_learning_curve
@@ -160,8 +164,32 @@ def _scene_options(args: SceneArgs) -> dict[str, Any]:
     if args.config is not None:
         options.update(load_yaml(args.config))
     options.update(parse_overrides(args.opt))
-    if args.task is not None:
+    if check_task(args.scene, args.task):  # a single-task scene's own task is no option
         options["task"] = args.task
+    return options
+
+
+def _validate(args: BcArgs | PpoArgs) -> dict[str, Any]:
+    """Check a bc or ppo run before anything is built (the scene's name, backend and options,
+    the sizes that drive memory, the seed, the output directory) and return its scene options;
+    each `ConfigError` names the flag and the value."""
+    SCENES.get(args.scene)
+    if args.backend not in BACKEND_NAMES:
+        raise unknown("backend", args.backend, BACKEND_NAMES)
+    options = _scene_options(args)
+    scene_options(args.scene, options)
+    sizes = [("n_envs", args.n_envs, MAX_ENVS), ("eval_episodes", args.eval_episodes, MAX_EPISODES)]
+    if isinstance(args, BcArgs):
+        sizes.append(("n_demos", args.n_demos, MAX_EPISODES))
+    else:
+        sizes.append(("eval_n_envs", args.eval_n_envs, MAX_ENVS))
+    for name, value, most in sizes:
+        if value > most:
+            raise ConfigError(f"{name} must be at most {most:,} (a bound on memory), got {value}")
+    if args.max_steps is not None:
+        check_counts(1, 1, args.max_steps)
+    check_seeds(args.seed)
+    check_writable_dir(args.out)
     return options
 
 
@@ -173,6 +201,7 @@ def _fmt_steps(n: float) -> str:
 
 
 def run_bc(args: BcArgs) -> int:
+    options = _validate(args)
     config = BCConfig(
         hidden=args.hidden,
         activation=args.activation,
@@ -187,7 +216,7 @@ def run_bc(args: BcArgs) -> int:
         enable_compilation_cache()
     summary = runs.run_bc(
         args.scene,
-        _scene_options(args),
+        options,
         backend,
         args.out,
         config,
@@ -301,6 +330,7 @@ class _Progress:
 
 
 def run_ppo(args: PpoArgs) -> int:
+    options = _validate(args)
     run_dir = RunDir(args.out)
     if args.resume:
         settings = run_dir.load_settings()
@@ -309,7 +339,7 @@ def run_ppo(args: PpoArgs) -> int:
     else:
         settings = {
             "scene": args.scene,
-            "scene_options": _scene_options(args),
+            "scene_options": options,
             "backend": resolve_backend_name(args.backend),
             "init": None if args.init is None else str(args.init),
             "num_timesteps": args.num_timesteps or DEFAULT_TIMESTEPS,
@@ -400,16 +430,18 @@ def _eval_flags(scene: Any, settings: dict[str, Any]) -> str:
 def run_curve(args: CurveArgs) -> int:
     if not can_plot():
         raise ConfigError("drawing the curve needs matplotlib: pip install 'openral_mjx[train]'")
+    check_writable_dir(args.out)
     run_dir = RunDir(args.out)
     _plot(run_dir, run_dir.load_settings())
     print(f"curve: {run_dir.curve_path}")
     return 0
 
 
-def main() -> None:
-    args = tyro.extras.subcommand_cli_from_dict(
-        {"bc": BcArgs, "ppo": PpoArgs, "curve": CurveArgs}, prog="python -m openral_mjx.finetune"
-    )
+def main(argv: Sequence[str] | None = None) -> None:
+    """The command: `argv` (default: the process's arguments) -> exit code."""
+    prog = "python -m openral_mjx.finetune"
+    commands = {"bc": BcArgs, "ppo": PpoArgs, "curve": CurveArgs}
+    args = parse(lambda: tyro.extras.subcommand_cli_from_dict(commands, prog=prog, args=argv), prog)
     run = {BcArgs: run_bc, PpoArgs: run_ppo, CurveArgs: run_curve}[type(args)]
     raise SystemExit(guarded(lambda: run(args)))
 

@@ -30,8 +30,15 @@ def variant(report: EvalReport, outcomes, seeds=None, **fields) -> EvalReport:
         for ok, s in zip(outcomes, seeds, strict=True)
     ]
     k, n = int(sum(outcomes)), len(outcomes)
+    row = dataclasses.replace(report.per_task[0], n_episodes=n, successes=k, success_rate=k / n)
     return dataclasses.replace(
-        report, episodes=episodes, successes=k, n_episodes=n, success_rate=k / n, **fields
+        report,
+        episodes=episodes,
+        successes=k,
+        n_episodes=n,
+        success_rate=k / n,
+        per_task=[row],
+        **fields,
     )
 
 

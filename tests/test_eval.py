@@ -169,7 +169,7 @@ def test_task_and_suite_help_come_from_the_registry(monkeypatch, capsys):
         ),
         (["--target-halfwidth", "0"], "target_halfwidth must lie in (0, 0.5), got 0.0"),
         (["--target-halfwidth", "0.5"], "target_halfwidth must lie in (0, 0.5), got 0.5"),
-        (["--target-halfwidth", "nan"], "target_halfwidth must lie in (0, 0.5), got nan"),
+        (["--target-halfwidth", "nan"], "--target-halfwidth must be a finite number, got nan"),
         (["--max-episodes", "100"], "max_episodes caps a sequential run: give target_halfwidth"),
         (
             ["--n-episodes", "10", "--target-halfwidth", "0.1"],

@@ -17,7 +17,7 @@ from openral_mjx.evaluation import suite as suite_module
     "kwargs, needle",
     [
         ({"factor_bins": 0}, "factor_bins must be a positive integer, got 0"),
-        ({"seed": -1}, "seed must be >= 0, got -1"),
+        ({"seed": -1}, r"seed must lie in \[0, 2147482624\] for 1,024 episodes .*got -1"),
         ({"devices": 0}, "devices must be >= 1, got 0"),
         ({"batching": "nope"}, "unknown batching 'nope'; valid: auto, chunks, refill"),
         ({"refill_every": 0}, "refill_every must be a positive integer, got 0"),

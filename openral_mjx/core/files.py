@@ -55,7 +55,20 @@ def check_writable(path: Path, what: str = "--out") -> None:
     (root, read-only mounts)."""
     if path.is_dir():
         raise ConfigError(f"{what} {str(path)!r} is a directory; give a file path")
-    parent = path.absolute().parent
+    _probe(path, path.absolute().parent, what)
+
+
+def check_writable_dir(path: Path, what: str = "--out") -> None:
+    """Raise `ConfigError` unless files can be written in directory `path` (made if missing):
+    `check_writable` for an output directory (a checkpoint, a training run)."""
+    if path.exists() and not path.is_dir():
+        raise ConfigError(f"{what} {str(path)!r} is a file; give a directory")
+    _probe(path, path.absolute(), what)
+
+
+def _probe(path: Path, parent: Path, what: str) -> None:
+    """Create and delete a temporary file in `parent` or, where it does not exist yet, in its
+    nearest existing ancestor; a `ConfigError` naming `path` if that fails."""
     while not parent.exists():
         parent = parent.parent
     if not parent.is_dir():

@@ -7,6 +7,8 @@ tuples, ints to floats), and each options class validates its own ranges in `__p
 from __future__ import annotations
 
 import dataclasses
+import math
+import re
 import types
 import typing
 from collections.abc import Iterable, Mapping
@@ -18,6 +20,25 @@ import yaml
 from openral_mjx.core.errors import ConfigError, unknown
 
 T = TypeVar("T")
+
+
+class NumberLoader(yaml.SafeLoader):
+    """PyYAML's safe loader, reading every float notation Python's `float()` takes as a number.
+
+    PyYAML follows YAML 1.1, whose floats need a dot: `5e-2` and `1e6` would stay strings (and
+    then be refused as "expected a number"). YAML 1.2, like Python, reads them as floats."""
+
+
+NumberLoader.add_implicit_resolver(
+    "tag:yaml.org,2002:float",
+    re.compile(r"^[-+]?(?:[0-9][0-9_]*\.?[0-9_]*|\.[0-9][0-9_]*)[eE][-+]?[0-9]+$"),
+    list("-+.0123456789"),
+)
+
+
+def yaml_value(text: str) -> Any:
+    """One YAML document (a file's text or an override's value) with `NumberLoader`."""
+    return yaml.load(text, Loader=NumberLoader)  # a SafeLoader: builds no Python objects
 
 
 def _coerce(name: str, value: Any, tp: Any) -> Any:
@@ -39,6 +60,8 @@ def _coerce(name: str, value: Any, tp: Any) -> Any:
     if tp is float:
         if isinstance(value, bool) or not isinstance(value, int | float):
             raise ConfigError(f"option {name}={value!r}: expected a number")
+        if not math.isfinite(value):
+            raise ConfigError(f"option {name}={value!r}: expected a finite number")
         return float(value)
     if tp is int:
         if isinstance(value, bool) or not isinstance(value, int):
@@ -70,15 +93,29 @@ def from_mapping(cls: type[T], mapping: Mapping[str, Any], base: T | None = None
 
 def load_yaml(path: Path) -> dict[str, Any]:
     """Read a YAML mapping; a missing file or a non-mapping is a `ConfigError`."""
+    if path.is_dir():
+        raise ConfigError(f"config file {str(path)!r} is a directory, not a YAML file")
     if not path.is_file():
         raise ConfigError(f"config file {str(path)!r} does not exist")
     try:
-        data = yaml.safe_load(path.read_text()) or {}
+        data = yaml_value(path.read_text()) or {}
     except yaml.YAMLError as e:
-        raise ConfigError(f"config file {str(path)!r} is not valid YAML: {e}") from None
+        raise ConfigError(f"config file {str(path)!r} is not valid YAML: {_one_line(e)}") from None
     if not isinstance(data, dict):
         raise ConfigError(f"config file {str(path)!r} must hold a mapping of option: value")
     return data
+
+
+def _one_line(error: yaml.YAMLError) -> str:
+    """A YAML error in one line: what is wrong and where (PyYAML's spans several, with the
+    offending line quoted and a caret under it)."""
+    problem = getattr(error, "problem", None)
+    mark = getattr(error, "problem_mark", None)
+    if problem is None:
+        return " ".join(str(error).split())
+    context = getattr(error, "context", None)
+    where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
+    return f"{f'{context}: ' if context else ''}{problem}{where}"
 
 
 def parse_overrides(items: Iterable[str]) -> dict[str, Any]:
@@ -89,7 +126,7 @@ def parse_overrides(items: Iterable[str]) -> dict[str, Any]:
         if not sep or not key.strip():
             raise ConfigError(f"option override {item!r} is not of the form key=value")
         try:
-            out[key.strip()] = yaml.safe_load(raw)
+            out[key.strip()] = yaml_value(raw)
         except yaml.YAMLError:
             raise ConfigError(f"option override {item!r}: value is not valid YAML") from None
     return out

@@ -5,6 +5,8 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import datetime as dt
+import functools
+import time
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
@@ -12,14 +14,18 @@ import jax
 import numpy as np
 
 from openral_mjx.core.errors import ConfigError
+from openral_mjx.core.interrupts import stop_reason, stop_signal
 from openral_mjx.core.options import to_dict
 from openral_mjx.evaluation.episodes import episode_results
+from openral_mjx.evaluation.partial import Interrupted, add_warnings
 from openral_mjx.evaluation.provenance import device_description, package_versions
+from openral_mjx.evaluation.sequential import SequentialRule
 from openral_mjx.evaluation.spec import RunSpec
 from openral_mjx.physics import PhysicsSettings
+from openral_mjx.physics.mj_warnings import count_warnings
 from openral_mjx.policies import Policy, make_policy
 from openral_mjx.policies.lerobot import implied_camera_options
-from openral_mjx.report import EvalReport, SequentialInfo, TaskRow
+from openral_mjx.report import EpisodeResult, EvalReport, PartialInfo, SequentialInfo, TaskRow
 from openral_mjx.runner import (
     RunTiming,
     check_batching,
@@ -184,13 +190,21 @@ def evaluate_spec(
     options: Mapping[str, Any] | None = None,
     on_chunk: Callable[[int, int, int], None] | None = None,
     randomize: Sequence[str] = (),
+    resume: EvalReport | None = None,
 ) -> Evaluation:
     """`run_evaluation` for a checked `RunSpec`: `scene` (a name: built from `options` as the
-    spec says, and closed with the `Evaluation`) run under `policy`."""
+    spec says, and closed with the `Evaluation`) run under `policy`.
+
+    A sequential run (`target_halfwidth`) stopped by a signal after its first look raises
+    `Interrupted` with the report of the chunks of seeds every one of which finished (a
+    prefix), marked partial; given that report as `resume`, the run goes on from the seed
+    after them, its looks where the uninterrupted run's fall, and returns the whole run's
+    report (its `arrays` and `timing` are those of the seeds run here)."""
     rule, n_episodes = spec.stopping_rule(), spec.episodes
     seed, step_rewards = spec.seed, spec.step_rewards
+    earlier = _resumed(resume, rule)
     owned = contextlib.ExitStack()
-    with owned:  # on an error, close what this call built (worker processes)
+    with owned, count_warnings() as warned:  # on an error, close what this call built
         if isinstance(scene, str):
             if isinstance(policy, str):  # a lerobot policy's cameras, unless options name them
                 implied = implied_camera_options(policy, SCENES.get(scene).options_cls, options)
@@ -214,22 +228,20 @@ def evaluate_spec(
             spec.batching, scene.backend.name, n_episodes, spec.n_envs, step_rewards, aligned
         )
         requested = np.arange(seed, seed + n_episodes, dtype=np.int64)
+        before = np.array([e.success for e in earlier], bool)
+        seen: dict[str, Any] = {}
+
+        def until(arrays: dict[str, Any]) -> bool:
+            """The stopping rule over every seed so far (a resumed run's earlier ones first),
+            keeping the finished prefix for a partial report."""
+            assert rule is not None
+            seen["arrays"] = arrays
+            return rule({"success": np.concatenate([before, arrays["success"]])})
+
         params, _ = pol.init(jax.random.PRNGKey(seed), scene.observation_spec)
-        arrays, timing = run_seeds(
-            scene,
-            pol,
-            params,
-            seeds=requested,
-            n_envs=spec.n_envs,
-            max_steps=steps,
-            on_chunk=on_chunk,
-            until=rule,
-            record=("rewards",) if step_rewards else (),
-            batching=batching,
-            refill_every=refill_every,
+        assemble = functools.partial(
+            _report, scene, policy, spec, rule, batching, refill_every, steps, resume, warned
         )
-        n_episodes = len(arrays["success"])
-        seeds = requested[:n_episodes]
         meta = {
             "scene": scene.name,
             "task": scene.task,
@@ -237,35 +249,108 @@ def evaluate_spec(
             "policy": policy,
             "backend": scene.backend.name,
         }
-        episodes = episode_results(
-            arrays,
-            seeds,
-            timing,
-            scene.control_dt,
-            meta,
+        episodes_of = functools.partial(
+            episode_results,
+            control_dt=scene.control_dt,
+            metadata=meta,
             policy_latency=pol.latency_ms is not None,
             describe=scene.describe_episode,
         )
+        start = time.perf_counter()
+        try:
+            arrays, timing = run_seeds(
+                scene,
+                pol,
+                params,
+                seeds=requested[len(earlier) :],
+                n_envs=spec.n_envs,
+                max_steps=steps,
+                on_chunk=on_chunk,
+                until=None if rule is None else until,
+                record=("rewards",) if step_rewards else (),
+                batching=batching,
+                refill_every=refill_every,
+            )
+        except BaseException as e:
+            signal = stop_signal(e)
+            if signal is None or rule is None or not (seen or earlier):
+                raise
+            arrays = seen.get("arrays", {"success": np.zeros(0, bool)})
+            n = len(arrays["success"])
+            chunk = rule.design.looks[0]
+            looks = -(-n // chunk)
+            run_s = time.perf_counter() - start  # compiling included: no chunk timings here
+            timing = RunTiming(0.0, run_s, (run_s / max(looks, 1),) * looks, steps, chunk)
+            seeds = requested[len(earlier) : len(earlier) + n]
+            episodes = episodes_of(arrays, seeds, timing) if n else []
+            total = len(requested)
+            partial = PartialInfo(stop_reason(signal), "episodes", len(earlier) + n, total)
+            raise Interrupted(signal, assemble(episodes, timing, partial)) from e
+        n_new = len(arrays["success"])
+        episodes = episodes_of(arrays, requested[len(earlier) : len(earlier) + n_new], timing)
+        report = assemble(episodes, timing)
         resources = owned.pop_all()  # handed to the Evaluation
-    successes = int(arrays["success"].sum())
+    return Evaluation(report, scene, pol, params, requested, arrays, timing, resources)
+
+
+def _resumed(resume: EvalReport | None, rule: SequentialRule | None) -> list[EpisodeResult]:
+    """The episodes of the partial sequential report a run resumes (none without one), its
+    design fixed at the chunk that report's looks came after."""
+    if resume is None:
+        return []
+    if rule is None or resume.sequential is None or resume.partial is None:
+        raise ConfigError("only a partial report of a sequential run (target_halfwidth) resumes")
+    rule.fix(resume.sequential.chunk)
+    return list(resume.episodes)
+
+
+def _report(
+    scene: Scene,
+    policy: str,
+    spec: RunSpec,
+    rule: SequentialRule | None,
+    batching: str,
+    refill_every: int,
+    steps: int,
+    resume: EvalReport | None,
+    warned: Mapping[str, int],
+    episodes: list[EpisodeResult],
+    timing: RunTiming,
+    partial: PartialInfo | None = None,
+) -> EvalReport:
+    """The report over `episodes` (after those of `resume`, whose timings add to `timing`'s)."""
+    earlier = [] if resume is None else resume.episodes
+    episodes = [*earlier, *episodes]
+    n_episodes = len(episodes)
+    success = np.array([e.success for e in episodes], bool)
+    successes = int(success.sum())
     low, high = wilson_interval(successes, n_episodes)
     sequential = None
+    exact = rule is not None and partial is None
     if rule is not None:
         design = rule.design
         look = design.looks.index(n_episodes)
-        low, high = design.interval(look, successes)
+        if exact:  # a partial run did not stop by the design: Wilson's interval, not its own
+            low, high = design.interval(look, successes)
+        stopped = "target" if design.meets_target(look, successes) else "max_episodes"
         sequential = SequentialInfo(
             target_halfwidth=design.halfwidth,
             max_episodes=design.max_episodes,
-            chunk=timing.n_envs,
+            chunk=design.looks[0],
             looks=look + 1,
-            stopped="target" if design.meets_target(look, successes) else "max_episodes",
+            stopped="interrupted" if partial is not None else stopped,
             halfwidth=(high - low) / 2,
             rule=RULE,
         )
     names = episodes[0].metadata["factors"] if episodes else {}
     factors = {k: [e.metadata["factors"][k] for e in episodes] for k in names}
-    report = EvalReport(
+    compile_s, run_s = timing.compile_s, timing.run_s
+    env_steps, live_steps = timing.env_steps, float(sum(e.steps for e in episodes))
+    if resume is not None:
+        compile_s, run_s = compile_s + resume.compile_s, run_s + resume.run_s
+        env_steps += resume.env_steps_per_s * resume.run_s
+    run_s = max(run_s, 1e-9)
+    return EvalReport(
         scene=scene.name,
         task=scene.task,
         robot=scene.robot_name,
@@ -274,32 +359,32 @@ def evaluate_spec(
         device=device_description(scene),
         n_episodes=n_episodes,
         n_envs=timing.n_envs,
-        seed=seed,
+        seed=spec.seed,
         max_steps=steps,
         successes=successes,
-        success_rate=successes / n_episodes,
+        success_rate=successes / max(n_episodes, 1),
         ci_low=low,
         ci_high=high,
         confidence=0.95,
-        ci_method="wilson" if rule is None else "sequential-exact",
-        diverged=int(arrays["diverged"].sum()),
+        ci_method="sequential-exact" if exact else "wilson",
+        diverged=sum(bool(e.metadata.get("diverged")) for e in episodes),
         per_task=[
             TaskRow(
                 scene.task,
                 n_episodes,
                 successes,
-                successes / n_episodes,
+                successes / max(n_episodes, 1),
                 low,
                 high,
                 instruction=scene.instruction,
             )
         ],
-        breakdown=breakdown(factors, arrays["success"], spec.factor_bins),
-        env_steps_per_s=timing.env_steps / timing.run_s,
-        episodes_per_s=n_episodes / timing.run_s,
-        live_env_steps_per_s=float(arrays["steps"].sum()) / timing.run_s,
-        compile_s=timing.compile_s,
-        run_s=timing.run_s,
+        breakdown=breakdown(factors, success, spec.factor_bins),
+        env_steps_per_s=env_steps / run_s,
+        episodes_per_s=n_episodes / run_s,
+        live_env_steps_per_s=live_steps / run_s,
+        compile_s=compile_s,
+        run_s=run_s,
         control_dt_s=scene.control_dt,
         options={
             **to_dict(scene.options),
@@ -317,5 +402,6 @@ def evaluate_spec(
         episodes=episodes,
         sequential=sequential,
         instruction=scene.instruction,
+        partial=partial,
+        mujoco_warnings=add_warnings([warned, {} if resume is None else resume.mujoco_warnings]),
     )
-    return Evaluation(report, scene, pol, params, requested, arrays, timing, resources)

@@ -29,6 +29,11 @@ class SequentialRule:
             raise RuntimeError("the sequential design is fixed at the first look")
         return self._design
 
+    def fix(self, chunk: int) -> None:
+        """Fix the design for looks every `chunk` episodes now (a resumed run: its first
+        look comes after the chunks of the run it resumes)."""
+        self._design = SequentialDesign.in_chunks(chunk, self.halfwidth, self.max_episodes)
+
     def __call__(self, arrays: Mapping[str, Any]) -> bool:
         n = len(arrays["success"])
         if self._design is None:

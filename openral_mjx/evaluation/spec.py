@@ -12,9 +12,13 @@ import dataclasses
 
 from openral_mjx.core.errors import ConfigError
 from openral_mjx.evaluation.sequential import SequentialRule, sequential_rule
-from openral_mjx.runner import check_batching, check_counts
+from openral_mjx.runner import MAX_STEPS, check_batching, check_counts, check_seeds
 
 FACTOR_BINS = 5  # equal-count bins per episode factor in a report's breakdown
+MAX_FACTOR_BINS = 1000
+# Upper bounds of the build settings, refused before anything is built: threads each start an
+# OS thread, a contact buffer is allocated per env, and no host has more devices.
+MAX_SETTING = {"devices": 4096, "threads": 4096, "contacts_per_env": 65536}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -45,8 +49,20 @@ class RunSpec:
         self._counts()
         if self.factor_bins < 1:
             raise ConfigError(f"factor_bins must be a positive integer, got {self.factor_bins}")
-        if self.devices is not None and self.devices < 1:
-            raise ConfigError(f"devices must be >= 1, got {self.devices}")
+        if self.factor_bins > MAX_FACTOR_BINS:
+            raise ConfigError(
+                f"factor_bins must be at most {MAX_FACTOR_BINS}, got {self.factor_bins}"
+            )
+        if self.refill_every > MAX_STEPS:
+            raise ConfigError(
+                f"refill_every must be at most {MAX_STEPS:,}, got {self.refill_every}"
+            )
+        for name in ("devices", "threads", "contacts_per_env"):
+            value = getattr(self, name)
+            if value is not None and value < 1:
+                raise ConfigError(f"{name} must be >= 1, got {value}")
+            if value is not None and value > MAX_SETTING[name]:
+                raise ConfigError(f"{name} must be at most {MAX_SETTING[name]:,}, got {value}")
         backend = "c" if self.backend == "auto" else self.backend  # auto may resolve to c
         check_batching(self.batching, backend, self.refill_every, traces=self.step_rewards)
 
@@ -58,8 +74,7 @@ class RunSpec:
         if rule is not None:
             episodes = rule.max_episodes
         check_counts(self.n_envs, episodes, 1 if self.max_steps is None else self.max_steps)
-        if self.seed < 0:
-            raise ConfigError(f"seed must be >= 0, got {self.seed}")
+        check_seeds(self.seed, episodes)
         return rule, episodes
 
     def stopping_rule(self) -> SequentialRule | None:

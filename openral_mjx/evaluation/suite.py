@@ -26,10 +26,12 @@ from pathlib import Path
 from typing import Any
 
 from openral_mjx.core.errors import ConfigError
+from openral_mjx.core.interrupts import stop_signal
+from openral_mjx.evaluation.partial import Interrupted, add_warnings, partial_info
 from openral_mjx.evaluation.run import build_spec_scene, evaluate_spec
 from openral_mjx.evaluation.spec import RunSpec
 from openral_mjx.policies import Policy, make_policy
-from openral_mjx.report import EvalReport, TaskRow
+from openral_mjx.report import EvalReport, PartialInfo
 from openral_mjx.runner.compile_cache import enable_compilation_cache
 from openral_mjx.scenes import scene_suite
 from openral_mjx.stats import wilson_interval
@@ -55,12 +57,18 @@ def evaluate_suite(
     compile_cache: Path | None = None,
     on_task: Callable[[int, int, str], None] | None = None,
     on_chunk: Callable[[int, int, int], None] | None = None,
+    resume: EvalReport | None = None,
 ) -> EvalReport:
     """Run `policy` on every task of `suite` as `spec` says (`RunSpec.for_suite`: a setting a
     suite cannot honour is refused), on its backend (`host` for a host scene; `mjx`, `warp`
     or `c` for a mirror such as `metaworld_mjx`). One task at a time, `on_task(i, n, task)`
     before each; with `task_processes` > 1, that many at once, `on_task` as each ends
     (`compile_cache`: the directory each process caches compiled programs in).
+
+    Stopped by a signal after its first tasks finished, raises `Interrupted` with the report
+    of those (marked partial: the suite's first tasks, as far as every one finished; with
+    several processes the running ones are ended). Given that report as `resume`, runs only
+    the tasks after them (see `evaluation.partial`).
 
     With several processes the report's `run_s` is the wall time of all the tasks together
     (their builds and compiles overlap their runs, so they are in it) and `compile_s` the sum
@@ -69,11 +77,53 @@ def evaluate_suite(
     if task_processes < 1:
         raise ConfigError(f"task_processes must be >= 1, got {task_processes}")
     tasks = scene_suite(scene, suite)
-    if task_processes > 1:
-        return _suite_in_processes(
-            scene, suite, policy, tasks, options, spec, task_processes, compile_cache, on_task
-        )
+    earlier = _resumed(resume, suite, tasks)
+    todo = tasks[len(earlier.partial.finished) if earlier and earlier.partial else 0 :]
     reports: list[EvalReport] = []
+    try:
+        if task_processes > 1:
+            _suite_in_processes(
+                scene, policy, todo, options, spec, task_processes, compile_cache, on_task, reports
+            )
+        else:
+            _suite_in_turn(scene, policy, todo, options, spec, on_task, on_chunk, reports)
+    except BaseException as e:
+        signal = stop_signal(e)
+        if signal is None or not (reports or earlier):
+            raise
+        finished = tasks[: len(tasks) - len(todo) + len(reports)]
+        partial = partial_info(signal, "tasks", finished, len(tasks))
+        blocks = [*([earlier] if earlier else []), *reports]
+        raise Interrupted(
+            signal, merge_reports(blocks, suite, policy, spec.command, partial)
+        ) from e
+    return merge_reports([*([earlier] if earlier else []), *reports], suite, policy, spec.command)
+
+
+def _resumed(resume: EvalReport | None, suite: str, tasks: list[str]) -> EvalReport | None:
+    """A partial suite report to resume from, checked to hold this suite's first tasks."""
+    if resume is None:
+        return None
+    done = resume.partial.finished if resume.partial is not None else []
+    if resume.partial is None or resume.task != suite or done != tasks[: len(done)]:
+        raise ConfigError(
+            f"cannot resume suite {suite!r} from a report of {resume.task!r} "
+            f"(finished tasks: {', '.join(done) or 'none'})"
+        )
+    return resume
+
+
+def _suite_in_turn(
+    scene: str,
+    policy: str,
+    tasks: list[str],
+    options: Mapping[str, Any] | None,
+    spec: RunSpec,
+    on_task: Callable[[int, int, str], None] | None,
+    on_chunk: Callable[[int, int, int], None] | None,
+    reports: list[EvalReport],
+) -> None:
+    """The `tasks` one after another, each one's report appended to `reports` as it ends."""
     pol: Policy | None = None
     try:
         for i, task in enumerate(tasks):
@@ -89,7 +139,6 @@ def evaluate_suite(
                     reports.append(evaluation.report)
     finally:
         _close(pol)
-    return merge_reports(reports, suite, policy, spec.command)
 
 
 def _close(policy: Policy | None) -> None:
@@ -123,9 +172,22 @@ def _task_report(
             _close(pol)
 
 
+def stop_pool(pool: concurrent.futures.ProcessPoolExecutor) -> None:
+    """End `pool` now: cancel what has not started and terminate its running processes, so
+    none outlives an interrupted parent (`shutdown` alone waits for running tasks)."""
+    processes = list(getattr(pool, "_processes", {}).values())  # no public handle before 3.14
+    pool.shutdown(wait=False, cancel_futures=True)
+    for process in processes:
+        process.terminate()
+    for process in processes:
+        process.join(timeout=5)
+        if process.is_alive():  # a task that handles SIGTERM itself and goes on
+            process.kill()
+            process.join(timeout=5)
+
+
 def _suite_in_processes(
     scene: str,
-    suite: str,
     policy: str,
     tasks: list[str],
     options: Mapping[str, Any] | None,
@@ -133,60 +195,66 @@ def _suite_in_processes(
     task_processes: int,
     compile_cache: Path | None,
     on_task: Callable[[int, int, str], None] | None,
-) -> EvalReport:
-    """`evaluate_suite` with `task_processes` tasks at once (fresh `spawn`ed processes: no
-    JAX or GPU state is inherited); the report's tasks in the suite's order."""
+    reports: list[EvalReport],
+) -> None:
+    """The `tasks` with `task_processes` at once (fresh `spawn`ed processes: no JAX or GPU
+    state is inherited); `reports` gets the first tasks' reports in the suite's order as soon
+    as every one before has ended, so an interrupt keeps a prefix. Its timings are made the
+    wall time's (see `evaluate_suite`)."""
     start = time.perf_counter()
-    with concurrent.futures.ProcessPoolExecutor(
+    pool = concurrent.futures.ProcessPoolExecutor(
         max_workers=min(task_processes, len(tasks)),
         mp_context=multiprocessing.get_context("spawn"),
         initializer=_start_task_process,
         initargs=(compile_cache,),
-    ) as pool:
+    )
+    try:
         futures = {
             pool.submit(_task_report, scene, task, policy, options or {}, spec): i
             for i, task in enumerate(tasks)
         }
-        reports: dict[int, EvalReport] = {}
-        try:
-            for future in concurrent.futures.as_completed(futures):
-                i = futures[future]
-                reports[i] = future.result()
-                if on_task is not None:
-                    on_task(len(reports), len(tasks), tasks[i])
-        except BaseException:
-            for future in futures:
-                future.cancel()
-            raise
+        ended: dict[int, EvalReport] = {}
+        for future in concurrent.futures.as_completed(futures):
+            i = futures[future]
+            ended[i] = future.result()
+            while len(reports) in ended:
+                reports.append(ended.pop(len(reports)))
+            if on_task is not None:
+                on_task(len(ended) + len(reports), len(tasks), tasks[i])
+    except BaseException:
+        stop_pool(pool)
+        raise
+    pool.shutdown()
     wall = time.perf_counter() - start
-    merged = merge_reports([reports[i] for i in range(len(tasks))], suite, policy, spec.command)
-    n = merged.n_episodes
+    merged = merge_reports(reports, "", policy, "")
     steps = merged.env_steps_per_s * merged.run_s
-    return dataclasses.replace(
-        merged, run_s=wall, episodes_per_s=n / wall, env_steps_per_s=steps / wall
-    )
+    for j, r in enumerate(reports):  # one wall time for all: spread over the tasks by share
+        share = r.run_s / (merged.run_s or 1.0)
+        reports[j] = dataclasses.replace(
+            r,
+            run_s=wall * share,
+            episodes_per_s=merged.n_episodes / wall,
+            env_steps_per_s=steps / wall,
+        )
 
 
-def merge_reports(reports: list[EvalReport], suite: str, policy: str, command: str) -> EvalReport:
-    """One report over several tasks' reports (see module docstring)."""
+def merge_reports(
+    reports: list[EvalReport],
+    suite: str,
+    policy: str,
+    command: str,
+    partial: PartialInfo | None = None,
+) -> EvalReport:
+    """One report over several tasks' reports (see module docstring): their `per_task` rows in
+    order (a report may itself be a merged one, as a partial suite's is), marked `partial`
+    where given."""
     first = reports[0]
     n = sum(r.n_episodes for r in reports)
     successes = sum(r.successes for r in reports)
     low, high = wilson_interval(successes, n)
     run_s = sum(r.run_s for r in reports)
     steps = sum(r.env_steps_per_s * r.run_s for r in reports)
-    rows = [
-        TaskRow(
-            r.task,
-            r.n_episodes,
-            r.successes,
-            r.success_rate,
-            r.ci_low,
-            r.ci_high,
-            instruction=r.instruction,
-        )
-        for r in reports
-    ]
+    rows = [row for r in reports for row in r.per_task]
     return dataclasses.replace(
         first,
         task=suite,
@@ -207,6 +275,8 @@ def merge_reports(reports: list[EvalReport], suite: str, policy: str, command: s
         options={**first.options, "task": suite},
         command=command,
         episodes=[e for r in reports for e in r.episodes],
+        partial=partial,
+        mujoco_warnings=add_warnings(r.mujoco_warnings for r in reports),
     )
 
 

@@ -8,6 +8,7 @@ from openral_mjx.report.schema import (
     BreakdownRow,
     EpisodeResult,
     EvalReport,
+    PartialInfo,
     SequentialInfo,
     TaskRow,
 )
@@ -18,6 +19,7 @@ __all__ = [
     "BreakdownRow",
     "EpisodeResult",
     "EvalReport",
+    "PartialInfo",
     "SequentialInfo",
     "TaskRow",
     "load_report",

@@ -25,16 +25,22 @@ def save_report(report: EvalReport, path: Path) -> None:
     write_text_atomic(path, report_json(report))
 
 
-def load_report(path: Path) -> EvalReport:
-    """Read a report back; every problem (missing file, bad JSON, another schema version,
-    unknown or missing fields) is a `ConfigError` that names the file."""
+def check_readable(path: Path, what: str) -> None:
+    """A `ConfigError` unless `path` is a file to read: a directory is named as one."""
+    if path.is_dir():
+        raise ConfigError(f"{what} {str(path)!r} is a directory, not a report file")
     if not path.is_file():
-        raise ConfigError(f"report {str(path)!r} does not exist")
+        raise ConfigError(f"{what} {str(path)!r} does not exist")
+
+
+def load_report(path: Path) -> EvalReport:
+    """Read a report back, validated (`EvalReport.from_json`): every problem (missing file,
+    a directory, bad JSON, another schema version, a wrong type, a missing or unknown field,
+    counts that do not add up) is a one-line `ConfigError` naming the file and the field."""
+    check_readable(path, "report")
     try:
-        data = json.loads(path.read_text())
-    except json.JSONDecodeError as e:
-        raise ConfigError(f"report {str(path)!r} is not valid JSON: {e}") from None
-    try:
-        return EvalReport.from_dict(data)
+        return EvalReport.from_json(path.read_text())
     except ConfigError as e:
         raise ConfigError(f"report {str(path)!r}: {e}") from None
+    except (OSError, UnicodeDecodeError) as e:
+        raise ConfigError(f"report {str(path)!r} cannot be read: {e}") from None

@@ -3,25 +3,42 @@
 Field names follow the predecessor's `EpisodeResult` (success, steps, total_reward, latency
 fields, frames, metadata). `EvalReport` aggregates a run; `SCHEMA_VERSION` changes whenever a
 field's meaning or presence changes. Reports of `READABLE_VERSIONS` load (keeping their own
-version); any other version is an error.
+version); any other version is an error. Reading validates: the dataclasses below are the
+typed model pydantic checks a report's JSON against (`report.validation`), then the counts
+are checked to add up (`check_totals`).
 """
 
 from __future__ import annotations
 
 import dataclasses
-from typing import Any
+import json
+from functools import cache
+from typing import Any, ClassVar
+
+from pydantic import ConfigDict, TypeAdapter
 
 from openral_mjx.core.errors import ConfigError
+from openral_mjx.report.validation import (
+    STRICT,
+    Count,
+    Fraction,
+    check,
+    validate_data,
+    validate_json,
+)
 
-SCHEMA_VERSION = "openral_mjx.eval_report/5"
+SCHEMA_VERSION = "openral_mjx.eval_report/6"
 # /2 has the same fields as /3; /3 only widened what the latency fields and metadata may hold
 # (a torch policy's own latencies, a host worker's error), so a /2 report reads as it was.
 # /4 added `live_env_steps_per_s` (continuous batching), None when read from /2 or /3.
 # /5 added `instruction` (the report's and each per-task row's), None when read from /2../4.
+# /6 added `partial` (an interrupted run's report of what finished; None: complete) and
+# `mujoco_warnings` (MuJoCo's warnings by kind), None and {} when read from /2../5.
 READABLE_VERSIONS = (
     "openral_mjx.eval_report/2",
     "openral_mjx.eval_report/3",
     "openral_mjx.eval_report/4",
+    "openral_mjx.eval_report/5",
     SCHEMA_VERSION,
 )
 
@@ -47,13 +64,15 @@ class EpisodeResult:
     episode's end, stored as `array` in the `.npz` `file` beside the report.
     """
 
+    __pydantic_config__: ClassVar[ConfigDict] = STRICT
+
     success: bool
-    steps: int
+    steps: Count
     total_reward: float
     mean_step_latency_ms: float
     max_step_latency_ms: float
     latency_budget_ms: float
-    budget_violations: int
+    budget_violations: Count
     frames: list[Any] | None = None
     metadata: dict[str, Any] = dataclasses.field(default_factory=dict)
 
@@ -75,12 +94,14 @@ class TaskRow:
     """Per-task aggregate (one row per task; a single-task scene has one); `instruction` is
     the task in natural language (the scene's `instruction`), None in reports before /5."""
 
+    __pydantic_config__: ClassVar[ConfigDict] = STRICT
+
     task: str
-    n_episodes: int
-    successes: int
-    success_rate: float
-    ci_low: float
-    ci_high: float
+    n_episodes: Count
+    successes: Count
+    success_rate: Fraction
+    ci_low: Fraction
+    ci_high: Fraction
     instruction: str | None = None
 
 
@@ -89,14 +110,16 @@ class BreakdownRow:
     """Success within one bin of one episode factor: episodes with `low <= value < high`
     (`<= high` in a factor's last bin), with a Wilson interval at the report's confidence."""
 
+    __pydantic_config__: ClassVar[ConfigDict] = STRICT
+
     factor: str
     low: float
     high: float
-    n: int
-    successes: int
-    rate: float
-    ci_low: float
-    ci_high: float
+    n: Count
+    successes: Count
+    rate: Fraction
+    ci_low: Fraction
+    ci_high: Fraction
 
 
 @dataclasses.dataclass
@@ -109,13 +132,42 @@ class SequentialInfo:
     design (`rule`), not a fixed-n interval.
     """
 
+    __pydantic_config__: ClassVar[ConfigDict] = STRICT
+
     target_halfwidth: float
-    max_episodes: int
-    chunk: int
-    looks: int
+    max_episodes: Count
+    chunk: Count
+    looks: Count
     stopped: str
     halfwidth: float
     rule: str
+
+
+@dataclasses.dataclass
+class PartialInfo:
+    """Why a report holds only part of its run, and which part (`eval --resume` finishes it).
+
+    `reason` is e.g. "interrupted (SIGINT)" or "terminated (SIGTERM)"; `done` of `total`
+    `unit`s finished ("episodes": always the first `done` seeds, a contiguous prefix; "tasks"
+    and "points": `finished` names them, as the suite lists its tasks and as `%g` formats a
+    sweep's values). The report's counts and intervals are over what finished only.
+    """
+
+    __pydantic_config__: ClassVar[ConfigDict] = STRICT
+
+    reason: str
+    unit: str
+    done: Count
+    total: Count
+    finished: list[str] = dataclasses.field(default_factory=list)
+
+    def describe(self) -> str:
+        """E.g. "2 of 4 points"."""
+        return f"{self.done} of {self.total} {self.unit}"
+
+    def summary(self) -> str:
+        """E.g. "partial: interrupted (SIGINT), 2 of 4 points"."""
+        return f"partial: {self.reason}, {self.describe()}"
 
 
 @dataclasses.dataclass
@@ -129,7 +181,12 @@ class EvalReport:
     `live_env_steps_per_s` only the steps of running episodes, `episodes_per_s` episodes.
     `instruction` is the task in natural language, as language-conditioned policies were told
     it (None for a suite, whose `per_task` rows carry each task's, and in reports before /5).
+    `partial` is None for a complete run, else what an interrupted one kept (`PartialInfo`);
+    `mujoco_warnings` counts MuJoCo C's warnings during the run by kind (e.g. "BADQACC"): the
+    messages MuJoCo would have printed (see `physics.mj_warnings`), counted instead.
     """
+
+    __pydantic_config__: ClassVar[ConfigDict] = STRICT
 
     scene: str
     task: str
@@ -137,17 +194,17 @@ class EvalReport:
     policy: str
     backend: str
     device: str
-    n_episodes: int
-    n_envs: int
-    seed: int
-    max_steps: int
-    successes: int
-    success_rate: float
-    ci_low: float
-    ci_high: float
-    confidence: float
+    n_episodes: Count
+    n_envs: Count
+    seed: Count
+    max_steps: Count
+    successes: Count
+    success_rate: Fraction
+    ci_low: Fraction
+    ci_high: Fraction
+    confidence: Fraction
     ci_method: str
-    diverged: int
+    diverged: Count
     per_task: list[TaskRow]
     breakdown: list[BreakdownRow]
     env_steps_per_s: float
@@ -163,6 +220,8 @@ class EvalReport:
     sequential: SequentialInfo | None = None
     live_env_steps_per_s: float | None = None
     instruction: str | None = None
+    partial: PartialInfo | None = None
+    mujoco_warnings: dict[str, int] = dataclasses.field(default_factory=dict)
     schema_version: str = SCHEMA_VERSION
 
     def summary(self) -> str:
@@ -174,6 +233,7 @@ class EvalReport:
             f"[{100 * self.ci_low:.1f}, {100 * self.ci_high:.1f}] ({self.ci_method} "
             f"{round(100 * self.confidence)}%), {self.successes}/{self.n_episodes} episodes"
             f"{div}, {self.env_steps_per_s:,.0f} env-steps/s, compile {self.compile_s:.1f} s"
+            + ("" if self.partial is None else f"; {self.partial.summary()}")
         )
 
     def to_dict(self) -> dict[str, Any]:
@@ -189,40 +249,55 @@ class EvalReport:
         return out
 
     @classmethod
-    def from_dict(cls, data: dict[str, Any]) -> EvalReport:
-        """Strict: another schema version, a missing or an unknown field is a `ConfigError`."""
-        version = data.get("schema_version") if isinstance(data, dict) else None
-        if version not in READABLE_VERSIONS:
-            raise ConfigError(
-                f"schema {version!r} is not supported; valid: {', '.join(READABLE_VERSIONS)}"
-            )
-        data = dict(data)
-        for name in ("per_task", "breakdown", "episodes"):
-            if name in data and not isinstance(data[name], list):
-                raise ConfigError(f"{name} must be a list, got {type(data[name]).__name__}")
-        for name, row in (("per_task", TaskRow), ("breakdown", BreakdownRow)):
-            if name in data:
-                data[name] = [_build(row, r, name) for r in data[name]]
-        if data.get("sequential") is not None:
-            data["sequential"] = _build(SequentialInfo, data["sequential"], "sequential")
-        if "episodes" in data:
-            data["episodes"] = [_build(EpisodeResult, e, "episodes") for e in data["episodes"]]
-        return _build(cls, data, "report")
+    def from_dict(cls, data: Any) -> EvalReport:
+        """Strict: another schema version, a wrong type, a missing or unknown field, or counts
+        that do not add up is a `ConfigError` naming the field."""
+        _check_version(data)
+        report = validate_data(_adapter(), data)
+        check_totals(report)
+        return report
+
+    @classmethod
+    def from_json(cls, text: str) -> EvalReport:
+        """`from_dict` of JSON `text`, validated from the text itself (no second encoding)."""
+        try:
+            data = json.loads(text)
+        except json.JSONDecodeError as e:
+            raise ConfigError(f"not valid JSON: {e}") from None
+        _check_version(data)
+        report = validate_json(_adapter(), text)
+        check_totals(report)
+        return report
 
 
-def _build(cls: type, data: Any, where: str) -> Any:
-    """`cls(**data)`, or a `ConfigError` naming unknown and missing fields."""
-    if not isinstance(data, dict):
-        raise ConfigError(f"{where}: expected an object, got {type(data).__name__}")
-    fields = dataclasses.fields(cls)
-    unknown = sorted(set(data) - {f.name for f in fields})
-    missing = [
-        f.name
-        for f in fields
-        if f.name not in data
-        and f.default is dataclasses.MISSING
-        and f.default_factory is dataclasses.MISSING
-    ]
-    if unknown or missing:
-        raise ConfigError(f"{where}: unknown fields {unknown}, missing fields {missing}")
-    return cls(**data)
+def _check_version(data: Any) -> None:
+    version = data.get("schema_version") if isinstance(data, dict) else None
+    if version not in READABLE_VERSIONS:
+        raise ConfigError(
+            f"schema {version!r} is not supported; valid: {', '.join(READABLE_VERSIONS)}"
+        )
+
+
+@cache
+def _adapter() -> TypeAdapter[EvalReport]:
+    return TypeAdapter(EvalReport)
+
+
+def check_totals(report: EvalReport) -> None:
+    """What the types cannot say: the totals agree with the episodes and the per-task rows
+    (`ConfigError` naming the field)."""
+    n, k = report.n_episodes, report.successes
+    check(k <= n, f"successes {k} > n_episodes {n}")
+    check(report.diverged <= n, f"diverged {report.diverged} > n_episodes {n}")
+    check(len(report.episodes) == n, f"episodes holds {len(report.episodes)}, n_episodes is {n}")
+    won = sum(e.success for e in report.episodes)
+    check(won == k, f"successes is {k}, but {won} episodes have success true")
+    rate = k / n if n else 0.0
+    check(abs(report.success_rate - rate) <= 1e-9, f"success_rate {report.success_rate} != {rate}")
+    check(report.ci_low <= report.ci_high, f"ci_low {report.ci_low} > ci_high {report.ci_high}")
+    for i, row in enumerate(report.per_task):
+        check(row.successes <= row.n_episodes, f"per_task[{i}].successes > its n_episodes")
+    rows = sum(r.n_episodes for r in report.per_task)
+    check(rows == n, f"per_task rows hold {rows} episodes, n_episodes is {n}")
+    for i, row in enumerate(report.breakdown):
+        check(row.successes <= row.n, f"breakdown[{i}].successes > its n")

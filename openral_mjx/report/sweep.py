@@ -10,13 +10,22 @@ from __future__ import annotations
 
 import dataclasses
 import json
+from functools import cache
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
+
+from pydantic import ConfigDict, TypeAdapter
 
 from openral_mjx.core.errors import ConfigError
 from openral_mjx.core.files import write_text_atomic
+from openral_mjx.report.io import check_readable
+from openral_mjx.report.schema import PartialInfo
+from openral_mjx.report.validation import STRICT, Count, Fraction, check, validate_data
 
-SWEEP_SCHEMA_VERSION = "openral_mjx.sweep/1"
+SWEEP_SCHEMA_VERSION = "openral_mjx.sweep/2"
+# /2 added `partial` (an interrupted sweep's finished points) and `mujoco_warnings`; a /1
+# report reads with None and {}.
+READABLE_SWEEP_VERSIONS = ("openral_mjx.sweep/1", SWEEP_SCHEMA_VERSION)
 
 
 @dataclasses.dataclass
@@ -24,13 +33,15 @@ class SweepPoint:
     """One grid value: the run's rate, its 95% Wilson interval, and per seed (in seed order)
     "1" for a success and "0" otherwise."""
 
+    __pydantic_config__: ClassVar[ConfigDict] = STRICT
+
     value: float
-    n_episodes: int
-    successes: int
-    success_rate: float
-    ci_low: float
-    ci_high: float
-    diverged: int
+    n_episodes: Count
+    successes: Count
+    success_rate: Fraction
+    ci_low: Fraction
+    ci_high: Fraction
+    diverged: Count
     episodes_per_s: float
     outcomes: str
 
@@ -41,13 +52,15 @@ class SweepStep:
     Newcombe's paired interval, the exact McNemar p-value, Holm-adjusted over every step,
     and whether the adjusted value is <= the sweep's alpha."""
 
+    __pydantic_config__: ClassVar[ConfigDict] = STRICT
+
     from_value: float
     to_value: float
     difference: float
     ci_low: float
     ci_high: float
-    p_value: float
-    p_adjusted: float
+    p_value: Fraction
+    p_adjusted: Fraction
     significant: bool
 
 
@@ -55,7 +68,11 @@ class SweepStep:
 class SweepReport:
     """A sweep of `factor` (``NAME=LOW:HIGH:N`` as given; `relative`: multiples of the
     model's values) on seeds `seed .. seed + n_episodes - 1`, with `randomize` (the other
-    factors, drawn per seed as in any randomised run) held the same at every point."""
+    factors, drawn per seed as in any randomised run) held the same at every point.
+    `partial` (see `PartialInfo`): an interrupted sweep's report of its finished points, the
+    first ones of the grid; `mujoco_warnings`: MuJoCo's warnings by kind over every point."""
+
+    __pydantic_config__: ClassVar[ConfigDict] = STRICT
 
     scene: str
     task: str
@@ -66,9 +83,9 @@ class SweepReport:
     sweep: str
     relative: bool
     randomize: list[str]
-    seed: int
-    n_episodes: int
-    alpha: float
+    seed: Count
+    n_episodes: Count
+    alpha: Fraction
     correction: str
     points: list[SweepPoint]
     steps: list[SweepStep]
@@ -77,6 +94,8 @@ class SweepReport:
     command: str
     created_at: str
     versions: dict[str, str]
+    partial: PartialInfo | None = None
+    mujoco_warnings: dict[str, int] = dataclasses.field(default_factory=dict)
     schema_version: str = SWEEP_SCHEMA_VERSION
 
     def to_dict(self) -> dict[str, Any]:
@@ -84,20 +103,28 @@ class SweepReport:
 
     @classmethod
     def from_dict(cls, data: Any) -> SweepReport:
-        """Strict: another schema version, a missing or an unknown field is a `ConfigError`."""
-        if not isinstance(data, dict) or data.get("schema_version") != SWEEP_SCHEMA_VERSION:
-            got = data.get("schema_version") if isinstance(data, dict) else None
+        """Strict: another schema version, a wrong type, a missing or unknown field, or
+        outcomes that do not match the counts is a `ConfigError` naming the field."""
+        got = data.get("schema_version") if isinstance(data, dict) else None
+        if got not in READABLE_SWEEP_VERSIONS:
             raise ConfigError(
-                f"sweep schema {got!r} is not supported; valid: {SWEEP_SCHEMA_VERSION}"
+                f"sweep schema {got!r} is not supported; valid: "
+                f"{', '.join(READABLE_SWEEP_VERSIONS)}"
             )
-        data = dict(data)
-        data["points"] = [_build(SweepPoint, p, "points") for p in data.get("points", [])]
-        data["steps"] = [_build(SweepStep, s, "steps") for s in data.get("steps", [])]
-        return _build(cls, data, "sweep report")
+        report = validate_data(_adapter(), data)
+        for i, p in enumerate(report.points):
+            where = f"points[{i}]"
+            check(set(p.outcomes) <= {"0", "1"}, f"{where}.outcomes holds other than 0 and 1")
+            check(len(p.outcomes) == p.n_episodes, f"{where}.outcomes is not n_episodes long")
+            check(p.outcomes.count("1") == p.successes, f"{where}.successes != its outcomes")
+            check(p.n_episodes == report.n_episodes, f"{where}.n_episodes != n_episodes")
+        return report
 
     def summary(self) -> str:
         """The table the CLI prints: rate per value, then where success changes."""
         lines = [f"{self.scene}/{self.policy} on {self.backend}: sweep {self.sweep}"]
+        if self.partial is not None:
+            lines[0] += f" ({self.partial.summary()})"
         for p in self.points:
             lines.append(
                 f"  {self.factor} = {p.value:<10g} success {100 * p.success_rate:5.1f}% "
@@ -114,32 +141,21 @@ class SweepReport:
         return "\n".join(lines)
 
 
-def _build(cls: type, data: Any, where: str) -> Any:
-    if not isinstance(data, dict):
-        raise ConfigError(f"{where}: expected an object, got {type(data).__name__}")
-    names = {f.name for f in dataclasses.fields(cls)}
-    required = {
-        f.name
-        for f in dataclasses.fields(cls)
-        if f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING
-    }
-    unknown_keys, missing = sorted(set(data) - names), sorted(required - set(data))
-    if unknown_keys or missing:
-        raise ConfigError(f"{where}: unknown fields {unknown_keys}, missing fields {missing}")
-    return cls(**data)
-
-
 def save_sweep(report: SweepReport, path: Path) -> None:
     write_text_atomic(path, json.dumps(report.to_dict(), indent=1, allow_nan=False) + "\n")
 
 
 def load_sweep(path: Path) -> SweepReport:
     """Read a sweep report back; every problem is a `ConfigError` naming the file."""
-    if not path.is_file():
-        raise ConfigError(f"sweep report {str(path)!r} does not exist")
+    check_readable(path, "sweep report")
     try:
         return SweepReport.from_dict(json.loads(path.read_text()))
     except json.JSONDecodeError as e:
         raise ConfigError(f"sweep report {str(path)!r} is not valid JSON: {e}") from None
     except ConfigError as e:
         raise ConfigError(f"sweep report {str(path)!r}: {e}") from None
+
+
+@cache
+def _adapter() -> TypeAdapter[SweepReport]:
+    return TypeAdapter(SweepReport)

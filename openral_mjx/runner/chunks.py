@@ -81,11 +81,41 @@ class RunTiming:
         return [round(1000 * s / self.scan_steps, 4) for s in self.chunk_s]
 
 
+# Upper bounds on what sizes memory, checked before anything is built: a batch of envs (every
+# env holds the model's state on the device), the episodes of one report (one result each,
+# kept in memory and written one line each) and an episode's control steps (per-step traces).
+# 32x the largest run so far (131,072 envs on two H200s); a typo like 1000000000000 is refused
+# with a message rather than an allocation traceback.
+MAX_ENVS = 2**22
+MAX_EPISODES = 2**22
+MAX_STEPS = 1_000_000
+# Seeds are int32 on the device (`seed_chunks`): every seed of a run lies in [0, 2**31).
+SEED_LIMIT = 2**31
+
+
 def check_counts(n_envs: int, n_episodes: int, max_steps: int) -> None:
-    """Reject non-positive counts with a `ConfigError` naming the value."""
-    for name, value in (("n_envs", n_envs), ("n_episodes", n_episodes), ("max_steps", max_steps)):
+    """Reject counts that are not positive or above their bound (`MAX_ENVS`, `MAX_EPISODES`,
+    `MAX_STEPS`) with a `ConfigError` naming the value."""
+    for name, value, most in (
+        ("n_envs", n_envs, MAX_ENVS),
+        ("n_episodes", n_episodes, MAX_EPISODES),
+        ("max_steps", max_steps, MAX_STEPS),
+    ):
         if value < 1:
             raise ConfigError(f"{name} must be a positive integer, got {value}")
+        if value > most:
+            raise ConfigError(f"{name} must be at most {most:,} (a bound on memory), got {value}")
+
+
+def check_seeds(seed: int, n_episodes: int = 1, name: str = "seed") -> None:
+    """Reject a first seed whose run of `n_episodes` seeds leaves [0, 2**31), with one message
+    for every value out of range (negative, 2**32, 2**64, ...)."""
+    last = SEED_LIMIT - max(n_episodes, 1)
+    if not 0 <= seed <= last:
+        span = f" for {n_episodes:,} episodes" if n_episodes > 1 else ""
+        raise ConfigError(
+            f"{name} must lie in [0, {last}]{span} (seeds are below 2**31), got {seed}"
+        )
 
 
 def envs_per_device(n_envs: int, n_devices: int, limit: int | None = None) -> int:

@@ -106,10 +106,16 @@ def gpu_groups(n: int, gpus: list[str]) -> list[str | None]:
     return [",".join(gpus[i * k : (i + 1) * k]) for i in range(n)]
 
 
-def check_count(n: int) -> None:
-    """A job needs at least one process."""
+# The most processes one command starts on this host (a job's, or a suite's tasks at once).
+MAX_PROCESSES = 256
+
+
+def check_count(n: int, flag: str = "--processes") -> None:
+    """A job needs at least one process, and at most `MAX_PROCESSES` on one host."""
     if n < 1:
-        raise ConfigError(f"--processes must be >= 1, got {n}")
+        raise ConfigError(f"{flag} must be >= 1, got {n}")
+    if n > MAX_PROCESSES:
+        raise ConfigError(f"{flag} must be at most {MAX_PROCESSES}, got {n}")
 
 
 def launch(module: str, argv: list[str], n: int) -> int:

@@ -450,8 +450,8 @@ class RefillRunner(EpisodeRunner):
         """Roll out every seed, as `EpisodeRunner.run` (same arrays); `on_chunk(done, total,
         successes)` reports the finished prefix of seeds (`done` seeds, `successes` among them)
         after each segment, never whatever else has finished; `until` sees the outcomes of the
-        first `n_envs`, `2 n_envs`, ... seeds once all of them have finished (the episode
-        factors are added afterwards, for the seeds the run keeps)."""
+        first `n_envs`, `2 n_envs`, ... seeds once all of them have finished, with their
+        episode factors (a run stopped there keeps what it saw)."""
         seeds = self._checked(seeds)
         layout, n = self.layout, len(seeds)
         n_dev = len(layout.devices)
@@ -478,6 +478,7 @@ class RefillRunner(EpisodeRunner):
         advance, slots = self._compiled, self.per_device
         segment_s: list[float] = []
         done, slot_steps, steps_before = 0, 0, np.zeros(n_dev, np.int64)
+        factors: list[Any] = []  # episode factors per batch of n_envs seeds, as computed
         while True:
             t = time.perf_counter()
             shrink_at = sizes[0] if sizes else -1
@@ -500,7 +501,7 @@ class RefillRunner(EpisodeRunner):
             stop = False
             while until is not None and looks and looks[0] <= prefix:
                 done = looks.pop(0)
-                if until(self._outcomes(carry, rows_of, done)):
+                if until(self._with_factors(self._outcomes(carry, rows_of, done), seeds, factors)):
                     stop = True
                     break
             if stop or prefix == n:
@@ -516,14 +517,7 @@ class RefillRunner(EpisodeRunner):
                 t0 += spent  # compiling is not running: it goes to compile_s
                 compile_s += spent
         run_s = time.perf_counter() - t0
-        arrays = self._outcomes(carry, rows_of, done)
-        if self._factor_fn is not None:
-            chunks = seed_chunks(seeds[:done], self.n_envs)
-            values = [layout.get(self._factor_fn(layout.put_envs(c))) for c in chunks]
-            for k in values[0]:
-                arrays[FACTOR_PREFIX + k] = np.concatenate([np.asarray(v[k]) for v in values])[
-                    :done
-                ]
+        arrays = self._with_factors(self._outcomes(carry, rows_of, done), seeds, factors)
         timing = RunTiming(
             compile_s=compile_s,
             run_s=run_s,
@@ -543,6 +537,26 @@ class RefillRunner(EpisodeRunner):
         assigned = np.asarray(self.layout.get(carry.next_seed)) >= seeds_per_device
         running = (~np.asarray(self.layout.get(carry.slots.ended))).reshape(n_dev, -1).sum(1)
         return bool(assigned.all() and (running <= n_out).all())
+
+    def _with_factors(
+        self, arrays: dict[str, Any], seeds: np.ndarray, known: list[Any]
+    ) -> dict[str, Any]:
+        """`arrays` of the first seeds with their episode factors (see `make_factor_fn`),
+        computed per batch of `n_envs` seeds; `known` keeps the full batches' values between
+        calls (the last, short batch is computed each time)."""
+        if self._factor_fn is None:
+            return arrays
+        done, layout = len(arrays["success"]), self.layout
+        chunks = seed_chunks(seeds[:done], self.n_envs)
+        n_full = done // self.n_envs
+        for c in chunks[len(known) : n_full]:
+            known.append(layout.get(self._factor_fn(layout.put_envs(c))))
+        values = known[:n_full]
+        if done % self.n_envs:
+            values = [*values, layout.get(self._factor_fn(layout.put_envs(chunks[n_full])))]
+        for k in values[0]:
+            arrays[FACTOR_PREFIX + k] = np.concatenate([np.asarray(v[k]) for v in values])[:done]
+        return arrays
 
     def _outcomes(self, carry: RefillCarry, rows_of: np.ndarray, n: int) -> dict[str, Any]:
         """The first `n` seeds' outcomes by field name (see `outcome_arrays`)."""

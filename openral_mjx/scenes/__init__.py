@@ -32,6 +32,9 @@ class SceneEntry:
     worker_env: str | None = None
     tasks: str | None = None  # how `--task` names a task, one line with examples; None: one task
     suite_names: tuple[str, ...] = ()  # the names `suites` takes, in the benchmark's order
+    # the policy ID of the expert its benchmark ships, for a scene with no `scripted_policy`
+    # of its own (`--policy scripted` there names it rather than only zero and random)
+    expert: str | None = None
 
     def __post_init__(self) -> None:
         if (self.suites is None) != (not self.suite_names):
@@ -63,6 +66,32 @@ SCENES.register_lazy("metaworld_mjx", "openral_mjx.benchmarks.metaworld.mirror:S
 SCENES.register_lazy("pusht", "openral_mjx.benchmarks.pusht.host_scene:SCENE")
 SCENES.register_lazy("aloha", "openral_mjx.benchmarks.aloha.host_scene:SCENE")
 SCENES.register_lazy("maniskill", "openral_mjx.benchmarks.maniskill.host_scene:SCENE")
+
+
+def check_task(name: str, task: str | None) -> bool:
+    """Whether `--task` is a scene option of scene `name` (multi-task scenes); a single-task
+    scene takes only its own task's name (then False), any other is a `ConfigError` naming it
+    and the scene's task."""
+    entry = SCENES.get(name)
+    if task is None or "task" in {f.name for f in dataclasses.fields(entry.options_cls)}:
+        return task is not None
+    own = getattr(entry.build, "task", None)
+    if task == own:
+        return False
+    raise ConfigError(f"unknown task {task!r} for scene {name!r}; valid: {own} (its only task)")
+
+
+def scripted_policy(name: str, policy: str) -> str:
+    """The policy to run for `--policy policy` on scene `name`: `scripted` means the scene's
+    scripted expert, which for a scene without a `scripted_policy` of its own is the expert
+    its benchmark ships (`SceneEntry.expert`); with neither, a `ConfigError` before anything
+    is built. Any other policy is returned unchanged."""
+    entry = SCENES.get(name)
+    if policy != "scripted" or hasattr(entry.build, "scripted_policy"):
+        return policy
+    if entry.expert is None:
+        raise ConfigError(f"scene {name!r} has no scripted policy; try zero, random")
+    return entry.expert
 
 
 def scene_suite(name: str, suite: str) -> list[str]:
@@ -129,8 +158,10 @@ __all__ = [
     "TabletopPush",
     "TabletopPushOptions",
     "check_robot",
+    "check_task",
     "make_scene",
     "resolve_scene_backend",
     "scene_options",
     "scene_suite",
+    "scripted_policy",
 ]

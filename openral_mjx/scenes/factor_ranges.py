@@ -18,6 +18,8 @@ from openral_mjx.raycast.mount import JITTER_POS_M, JITTER_ROT_RAD
 from openral_mjx.scenes.base import Scene
 
 MAX_DELAY = 32  # the longest action delay, in control steps (`Randomized` queues this many)
+# The most points of one `--sweep`: each point runs every seed again and keeps its outcomes.
+MAX_SWEEP_POINTS = 1000
 
 
 @dataclasses.dataclass(frozen=True)
@@ -125,9 +127,12 @@ class FactorRange:
 def _number(name: str, text: str, item: str) -> tuple[float, bool]:
     relative = text.endswith("x")
     try:
-        return float(text[:-1] if relative else text), relative
+        value = float(text[:-1] if relative else text)
     except ValueError:
         raise ConfigError(f"{item!r}: {text!r} is not a number (factor {name})") from None
+    if not np.isfinite(value):  # inf would run, then fail writing the report (not JSON)
+        raise ConfigError(f"{item!r}: {text!r} is not a finite number (factor {name})")
+    return value, relative
 
 
 def _check_value(kind: FactorKind, name: str, value: float, relative: bool, item: str) -> None:
@@ -164,8 +169,11 @@ def parse_factor(item: str, *, grid: bool = False) -> tuple[FactorRange, int]:
             points = int(parts.pop())
         except ValueError:
             raise ConfigError(f"--sweep {item!r}: N must be a whole number") from None
-        if points < 2:
-            raise ConfigError(f"--sweep {item!r}: N must be >= 2, got {points}")
+        if not 2 <= points <= MAX_SWEEP_POINTS:
+            raise ConfigError(
+                f"--sweep {item!r}: N must lie in [2, {MAX_SWEEP_POINTS}] (each point is a "
+                f"run of every seed), got {points}"
+            )
     elif len(parts) > 2:
         raise ConfigError(f"{item!r} is not NAME=LOW:HIGH or NAME=VALUE")
     numbers = [_number(name, p.strip(), item) for p in parts]

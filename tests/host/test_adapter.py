@@ -191,8 +191,16 @@ def _workers_of(marker: str) -> list[int]:
     return found
 
 
-def test_ctrl_c_ends_the_run_and_its_workers(tmp_path):
-    """A run whose env hangs, interrupted: exit code 130, one line, no worker left behind."""
+@pytest.mark.parametrize(
+    "stop, code",
+    [
+        pytest.param(signal.SIGINT, 130, id="SIGINT"),
+        pytest.param(signal.SIGTERM, 143, id="SIGTERM", marks=pytest.mark.heavy),  # ~20 s more
+    ],
+)
+def test_ctrl_c_ends_the_run_and_its_workers(tmp_path, stop, code):
+    """A run whose env hangs, interrupted (Ctrl-C) or terminated: exit code 130 or 143, one
+    line, no worker left behind."""
     marker = f"OPENRAL_MJX_TEST_MARK={tmp_path.name}"
     env = {**os.environ, "OPENRAL_MJX_TEST_MARK": tmp_path.name}
     argv = [
@@ -218,9 +226,10 @@ def test_ctrl_c_ends_the_run_and_its_workers(tmp_path):
         time.sleep(0.5)
     assert _workers_of(marker), "the workers never started"
     time.sleep(3)  # let it reach the hanging step
-    proc.send_signal(signal.SIGINT)
+    proc.send_signal(stop)
     _, err = proc.communicate(timeout=60)
-    assert proc.returncode == 130 and b"interrupted" in err, err
+    said = b"interrupted (SIGINT)" if stop == signal.SIGINT else b"terminated (SIGTERM)"
+    assert proc.returncode == code and said in err, err
     time.sleep(1)
     assert _workers_of(marker) == [] and not (tmp_path / "r.json").exists()
 

@@ -1,6 +1,7 @@
 """Report JSON: round trip through a saved file, strict loading, compact layout, atomic writes."""
 
 import json
+import re
 from pathlib import Path
 
 import jax.numpy as jnp
@@ -9,7 +10,13 @@ import pytest
 
 from openral_mjx.core.errors import ConfigError
 from openral_mjx.evaluation import evaluate
-from openral_mjx.report import SCHEMA_VERSION, EvalReport, load_report, save_report
+from openral_mjx.report import (
+    READABLE_VERSIONS,
+    SCHEMA_VERSION,
+    EvalReport,
+    load_report,
+    save_report,
+)
 from openral_mjx.runner import make_factor_fn
 
 
@@ -84,11 +91,26 @@ def test_one_line_per_episode(report, tmp_path):
     "change,needle",
     [
         (lambda d: d.update(schema_version="openral_mjx.eval_report/1"), "not supported"),
-        (lambda d: d.update(extra=1), "unknown fields ['extra']"),
-        (lambda d: d.update(episodes=6), "episodes must be a list, got int"),
-        (lambda d: d.pop("breakdown"), "missing fields ['breakdown']"),
-        (lambda d: d["episodes"][0].pop("steps"), "episodes: unknown fields [], missing"),
-        (lambda d: d["breakdown"][0].update(bin=3), "breakdown: unknown fields ['bin']"),
+        (lambda d: d.update(extra=1), "unknown field extra"),
+        (lambda d: d.update(episodes=6), "field episodes: input should be a valid array, got 6"),
+        (lambda d: d.pop("breakdown"), "field breakdown is missing"),
+        (lambda d: d["episodes"][0].pop("steps"), "field episodes[0].steps is missing"),
+        (lambda d: d["breakdown"][0].update(bin=3), "unknown field breakdown[0].bin"),
+        # wrong types are refused, not coerced or counted
+        (lambda d: d.update(successes="x"), "field successes: input should be a valid integer"),
+        (lambda d: d["episodes"][1].update(success="maybe"), "field episodes[1].success: input"),
+        (lambda d: d["episodes"][1].update(success=1), "field episodes[1].success: input"),
+        (lambda d: d.update(n_episodes=6.0), "field n_episodes: input should be a valid integer"),
+        (lambda d: d.update(success_rate=1.5), "field success_rate: input should be less than"),
+        (lambda d: d["per_task"][0].update(successes=-1), "field per_task[0].successes: input"),
+        # impossible counts
+        (lambda d: d.update(successes=7), "successes 7 > n_episodes 6"),
+        (lambda d: d.update(successes=1, success_rate=1 / 6), "but 0 episodes have success true"),
+        (lambda d: d.update(diverged=9), "diverged 9 > n_episodes 6"),
+        (lambda d: d["episodes"].pop(), "episodes holds 5, n_episodes is 6"),
+        (lambda d: d.update(success_rate=0.5), "success_rate 0.5 != 0.0"),
+        (lambda d: d["per_task"][0].update(n_episodes=5), "per_task rows hold 5 episodes"),
+        (lambda d: d["breakdown"][0].update(successes=99), "breakdown[0].successes > its n"),
     ],
 )
 def test_loading_is_strict(report, tmp_path, change, needle):
@@ -98,7 +120,36 @@ def test_loading_is_strict(report, tmp_path, change, needle):
     path.write_text(json.dumps(data))
     with pytest.raises(ConfigError, match=r"^report '.*bad\.json': ") as exc:
         load_report(path)
-    assert needle in str(exc.value)
+    assert needle in str(exc.value) and "\n" not in str(exc.value), str(exc.value)
+    with pytest.raises(ConfigError, match=re.escape(needle)):  # the same from a dict
+        EvalReport.from_dict(data)
+
+
+def test_a_directory_is_named_as_one(tmp_path):
+    with pytest.raises(ConfigError, match="is a directory, not a report file"):
+        load_report(tmp_path)
+
+
+def _full_report(path: Path) -> bool:
+    """A report of a readable schema that keeps its episodes (some saved ones drop them)."""
+    data = json.loads(path.read_text())
+    return (
+        isinstance(data, dict)
+        and data.get("schema_version") in READABLE_VERSIONS
+        and isinstance(data.get("episodes"), list)
+    )
+
+
+SAVED_REPORTS = sorted(
+    p for p in (Path(__file__).parents[2] / "benchmarks").rglob("*.json") if _full_report(p)
+)
+
+
+@pytest.mark.parametrize("path", SAVED_REPORTS, ids=lambda p: p.name)
+def test_every_saved_report_validates(path):
+    """Every full report kept in benchmarks/ (schemas /2 to /5) passes validation."""
+    loaded = load_report(path)
+    assert loaded.n_episodes == len(loaded.episodes) > 0
 
 
 SAVED_V2 = Path(__file__).parents[2] / "benchmarks/2026-11-23-ci2core/rays/box_c_nodepth.json"

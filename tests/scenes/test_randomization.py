@@ -74,7 +74,7 @@ def test_bad_factor_is_a_config_error(item, message):
 
 
 def test_bad_sweep_and_repeats():
-    with pytest.raises(ConfigError, match="N must be >= 2"):
+    with pytest.raises(ConfigError, match=r"N must lie in \[2, 1000\]"):
         parse_factor("friction=0.2:1:1", grid=True)
     with pytest.raises(ConfigError, match="not NAME=LOW:HIGH:N"):
         parse_factor("friction=0.2:1", grid=True)

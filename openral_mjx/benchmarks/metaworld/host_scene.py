@@ -291,4 +291,5 @@ SCENE = SceneEntry(
     worker_env=ENV,
     tasks=f"MetaWorld's {len(TASKS)} v3 tasks, e.g. {', '.join(MT10[:3])}",
     suite_names=tuple(SUITES),
+    expert="metaworld-expert",
 )

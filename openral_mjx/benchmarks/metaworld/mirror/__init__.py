@@ -16,6 +16,7 @@ SCENE = SceneEntry(
     worker_env=ENV,
     tasks=host_scene.SCENE.tasks,
     suite_names=host_scene.SCENE.suite_names,
+    expert="metaworld-expert",
 )
 
 __all__ = ["SCENE", "MetaWorldMjx", "MetaWorldMjxOptions"]

@@ -8,7 +8,9 @@ the host scene's env, so LIBERO's config and assets are set up the same way) and
   compiler's ``inertiagrouprange``; MuJoCo's saved XML drops it, and a body's inertia then
   counts its visual meshes: LIBERO's objects came out up to 4x heavier that way);
 - the compiled model's body inertials (``body_mass``, ``body_inertia``, ``body_ipos``,
-  ``body_iquat``), so the mirror can pin them whatever its compiler infers;
+  ``body_iquat``), so the mirror can pin them whatever its compiler infers, and its body
+  poses after `reset` (``body_pos``, ``body_quat``): LIBERO places its fixtures by writing
+  them into the compiled model, not the MJCF;
 - the task's 50 shipped initial states, flattened as MuJoCo's ``[time, qpos, qvel]``;
 - robosuite's OSC_POSE controller constants (gains, action scaling, the nullspace pose,
   torque limits), the gripper's speed and actuators, and the controller's state after
@@ -59,6 +61,10 @@ class TaskExport:
             "body_inertia": m.body_inertia.copy(),
             "body_ipos": m.body_ipos.copy(),
             "body_iquat": m.body_iquat.copy(),
+            # LIBERO places its fixtures by writing the compiled model's body poses at reset
+            # (the same poses at every reset); the MJCF holds their defaults
+            "body_pos": m.body_pos.copy(),
+            "body_quat": m.body_quat.copy(),
             "nq": int(m.nq),
             "nv": int(m.nv),
             "init_states": np.asarray(self.host.init_states, np.float64),
@@ -219,6 +225,17 @@ class TaskExport:
                 "all": predicate in ("close", "turnoff"),  # LIBERO: every joint; else any
             }
         raise ValueError(f"LIBERO predicate {predicate!r} is not mirrored")
+
+    def check_success(self, states: np.ndarray) -> np.ndarray:
+        """LIBERO's goal (`_check_success`) at each flattened ``[time, qpos, qvel]`` state,
+        after a forward pass (contacts and poses of that state)."""
+        sim = self.env.sim
+        out = []
+        for state in np.asarray(states, np.float64):
+            sim.set_state_from_flattened(state)
+            sim.forward()
+            out.append(bool(self.env._check_success()))
+        return np.array(out)
 
     def rollout(self, init: int, actions: np.ndarray) -> dict[str, np.ndarray]:
         """Reset to initial state `init` (and LIBERO's settle steps), then play `actions`

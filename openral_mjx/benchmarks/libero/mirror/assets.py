@@ -8,8 +8,9 @@ states and the controller's constants. Later runs read the cache and start no wo
 
 `physics_spec` turns the MJCF into the model the mirror simulates: visual-only geoms and the
 assets only they use are dropped (LIBERO's visual meshes hold 0.6-1.1 M vertices against 7 k
-for collision), and every body's inertial is pinned to the exported one, so the dynamics do
-not depend on how our MuJoCo infers inertia from what is left.
+for collision), every body's inertial is pinned to the exported one, so the dynamics do not
+depend on how our MuJoCo infers inertia from what is left, and every body's pose to the one
+LIBERO's reset writes (its fixtures: cabinets, stoves, racks are placed that way).
 """
 
 from __future__ import annotations
@@ -32,7 +33,7 @@ from openral_mjx.host.pool import RemoteError, Worker, WorkerFailure
 ENV = "lerobot-libero"
 FACTORY = "openral_mjx.benchmarks.libero.export:TaskExport"
 TIMEOUT_S = 900.0
-FORMAT = 4  # bump when `TaskExport.model`'s content changes: older caches are rebuilt
+FORMAT = 5  # bump when `TaskExport.model`'s content changes: older caches are rebuilt
 
 
 def models_root() -> Path:
@@ -148,4 +149,6 @@ def physics_spec(model: TaskModel) -> mujoco.MjSpec:
         body.inertia = a["body_inertia"][i]
         body.ipos = a["body_ipos"][i]
         body.iquat = a["body_iquat"][i]
+        body.pos = a["body_pos"][i]  # where LIBERO's reset puts the fixtures
+        body.quat = a["body_quat"][i]
     return spec

@@ -49,6 +49,7 @@ ROLES = {
     "instructions": "scenes",  # data: the benchmark's task instructions, read by its scenes
     "expert": "policies",
     "worker_env": "host",
+    "export": "host",  # runs in the worker environment too: what a mirror reads of the original
 }
 
 

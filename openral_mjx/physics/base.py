@@ -30,6 +30,10 @@ class QuantitySpec:
     and RGB cameras (`RgbSpec`, rendered on `warp` only); their readings appear in
     `Quantities.sensors` under each spec's key.
 
+    `contacts`: pairs of geom-name sets; each reads whether any geom of the first set touches
+    any of the second (in MuJoCo's contact list as the step's collision left it, as
+    ``contact`` sensors find it): robosuite's `check_contact` between two objects. On `c`.
+
     `poses_after_step`: after a step, report the poses of the state the step ends in (as an
     `mj_forward` after `mj_step` would), not those `mj_step` leaves in MuJoCo's data (computed
     before its last integration, one physics step earlier: the default). The simulation itself
@@ -41,6 +45,7 @@ class QuantitySpec:
     sensors: tuple[SensorSpec, ...] = ()
     geoms: tuple[str, ...] = ()
     poses_after_step: bool = False
+    contacts: tuple[tuple[tuple[str, ...], tuple[str, ...]], ...] = ()
 
 
 @dataclasses.dataclass(frozen=True)
@@ -87,6 +92,8 @@ class Quantities:
     # Sensor readings by key: laser ranges (n_beams,) and depth images (H, W) in metres, RGB
     # images (H, W, 3) in [0, 1].
     sensors: dict[str, jax.Array]
+    # (len(spec.contacts),) bool: whether each pair of `QuantitySpec.contacts` touches
+    contacts: jax.Array | None = None
 
 
 @struct.dataclass

@@ -25,6 +25,7 @@ import mujoco
 import numpy as np
 from mujoco import rollout
 
+from openral_mjx.core.errors import ConfigError
 from openral_mjx.physics.base import (
     PhysicsBackend,
     PhysicsState,
@@ -57,6 +58,30 @@ def default_threads() -> int:
         return len(os.sched_getaffinity(0))
     except AttributeError:  # pragma: no cover - non-Linux
         return os.cpu_count() or 1
+
+
+def contact_side(model: mujoco.MjModel, geoms: tuple[str, ...]) -> list[tuple[Any, str]]:
+    """How `contact` sensors name one side of a pair of geom sets: one body subtree where
+    the set is exactly that subtree's colliding geoms, else each geom by name."""
+    ids = {model.geom(g).id for g in geoms}
+    collide = (model.geom_contype != 0) | (model.geom_conaffinity != 0)
+    for body in sorted({int(model.geom_bodyid[g]) for g in ids}):
+        subtree = {
+            g
+            for g in range(model.ngeom)
+            if collide[g] and _in_subtree(model, int(model.geom_bodyid[g]), body)
+        }
+        if subtree == ids:
+            return [(mujoco.mjtObj.mjOBJ_XBODY, model.body(body).name)]
+    return [(mujoco.mjtObj.mjOBJ_GEOM, model.geom(g).name) for g in sorted(ids)]
+
+
+def _in_subtree(model: mujoco.MjModel, body: int, root: int) -> bool:
+    while body > 0:
+        if body == root:
+            return True
+        body = int(model.body_parentid[body])
+    return root == 0
 
 
 class CBackend(PhysicsBackend):
@@ -113,6 +138,26 @@ class CBackend(PhysicsBackend):
                 s.add_sensor(
                     type=kind, objtype=mujoco.mjtObj.mjOBJ_XBODY, objname=self.mj_model.body(b).name
                 )
+        if quantities.contacts and quantities.poses_after_step:
+            raise ConfigError(
+                "contact quantities read the step's own collision: no poses_after_step"
+            )
+        self._contact_slices = []
+        model = self.mj_model
+        for first, second in quantities.contacts:
+            start = len(s.sensors)
+            for a in contact_side(model, first):
+                for b in contact_side(model, second):
+                    s.add_sensor(
+                        type=mujoco.mjtSensor.mjSENS_CONTACT,
+                        objtype=a[0],
+                        objname=a[1],
+                        reftype=b[0],
+                        refname=b[1],
+                        intprm=[1, 0, 1],  # data "found" (a count), no reduction, one slot
+                        dim=1,
+                    )
+            self._contact_slices.append((start, len(s.sensors)))
         return s.compile()
 
     # ---- host side (numpy, float64) -------------------------------------------------------
@@ -139,6 +184,12 @@ class CBackend(PhysicsBackend):
         geom = sens[:, at : at + 7 * ng].reshape(n, ng, 7)
         at += 7 * ng
         seen = sens[:, at : at + 7 * nr].reshape(n, nr, 7)
+        at += 7 * nr
+        # the contact sensors follow, one float each: a pair touches where any counts a match
+        touching = np.zeros((n, len(self._contact_slices)), bool)
+        for i, (a, b) in enumerate(self._contact_slices):
+            base = at - self._contact_slices[0][0]
+            touching[:, i] = sens[:, base + a : base + b].sum(axis=1) > 0
         qpos = states[:, self._off_qpos : self._off_qpos + self.nq]
         qvel = states[:, self._off_qvel : self._off_qvel + self.nv]
         ok = ok & np.isfinite(states).all(axis=1) & np.isfinite(sens).all(axis=1)
@@ -154,6 +205,7 @@ class CBackend(PhysicsBackend):
             geom[:, :, 3:].astype(f32),
             seen[:, :, :3].astype(f32),
             seen[:, :, 3:].astype(f32),
+            touching,
             ok,
         )
 
@@ -302,11 +354,12 @@ class CBackend(PhysicsBackend):
             sd((*lead, ng, 4), f32),
             sd((*lead, nr, 3), f32),
             sd((*lead, nr, 4), f32),
+            sd((*lead, len(self.quantity_spec.contacts)), jnp.bool_),
             sd((*lead,), jnp.bool_),
         )
 
     def _pack(self, out: Any, fields: dict[str, jax.Array]) -> PhysicsState:
-        bits, qpos, qvel, bpos, bquat, spos, gpos, gquat, rpos, rquat, ok = out
+        bits, qpos, qvel, bpos, bquat, spos, gpos, gquat, rpos, rquat, touching, ok = out
         q = Quantities(
             qpos=qpos,
             qvel=qvel,
@@ -317,6 +370,7 @@ class CBackend(PhysicsBackend):
             geom_quat=gquat,
             ok=ok,
             sensors=self.read_sensors_of(rpos, rquat, fields),
+            contacts=touching,
         )
         return PhysicsState(data=bits, quantities=q, fields=fields)
 

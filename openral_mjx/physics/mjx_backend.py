@@ -80,6 +80,10 @@ class MjxBackend(PhysicsBackend):
 
     def _setup(self, spec: mujoco.MjSpec) -> None:
         m = self.mj_model
+        if self.quantity_spec.contacts:
+            raise ConfigError(
+                f"contact quantities run on backend 'c' only for now, not {self.name!r}"
+            )
         pairs_cap = numeric(m, "max_geom_pairs")
         if self.impl == "jax" and pairs_cap is not None and pairs_cap >= 0:
             raise ConfigError(

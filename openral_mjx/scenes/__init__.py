@@ -60,6 +60,7 @@ SCENES.register("point_reach")(SceneEntry(PointReachOptions, point_reach, backen
 # Public benchmarks' scenes live in their folders (`openral_mjx.benchmarks.<name>`), each
 # module's `SCENE` its entry; they import this package, so they are registered by reference.
 SCENES.register_lazy("libero", "openral_mjx.benchmarks.libero.host_scene:SCENE")
+SCENES.register_lazy("libero_mjx", "openral_mjx.benchmarks.libero.mirror:SCENE")
 SCENES.register_lazy("robosuite", "openral_mjx.benchmarks.robosuite.host_scene:SCENE")
 SCENES.register_lazy("metaworld", "openral_mjx.benchmarks.metaworld.host_scene:SCENE")
 SCENES.register_lazy("metaworld_mjx", "openral_mjx.benchmarks.metaworld.mirror:SCENE")

@@ -1,0 +1,284 @@
+"""What the LIBERO mirror needs of a task, read from LIBERO itself (runs in a worker of the
+``lerobot-libero`` environment; numpy and LIBERO only).
+
+`TaskExport(task).model()` builds LIBERO's `OffScreenRenderEnv` for ``suite/index`` (through
+the host scene's env, so LIBERO's config and assets are set up the same way) and returns:
+
+- ``xml``: the MJCF robosuite composes for the task (its own `get_xml`, which keeps the
+  compiler's ``inertiagrouprange``; MuJoCo's saved XML drops it, and a body's inertia then
+  counts its visual meshes: LIBERO's objects came out up to 4x heavier that way);
+- the compiled model's body inertials (``body_mass``, ``body_inertia``, ``body_ipos``,
+  ``body_iquat``), so the mirror can pin them whatever its compiler infers, and its body
+  poses after `reset` (``body_pos``, ``body_quat``): LIBERO places its fixtures by writing
+  them into the compiled model, not the MJCF;
+- the task's 50 shipped initial states, flattened as MuJoCo's ``[time, qpos, qvel]``;
+- robosuite's OSC_POSE controller constants (gains, action scaling, the nullspace pose,
+  torque limits), the gripper's speed and actuators, and the controller's state after
+  `reset` (the goal orientation a zero rotation keeps, the gripper's current command, and
+  the robot state it read then, which the first step after `set_init_state` still uses);
+- the names the mirror reads (end-effector site and body, arm joints and actuators).
+
+`TaskExport.rollout` plays a fixed action sequence from one initial state and records what
+the agreement tests compare.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from openral_mjx.benchmarks.libero.worker_env import DUMMY_ACTION, SETTLE_STEPS, LiberoEnv
+
+# LIBERO's articulated objects' method for each joint predicate
+_METHODS = {"open": "is_open", "close": "is_close", "turnon": "turn_on", "turnoff": "turn_off"}
+
+
+class TaskExport:
+    """One LIBERO task, built once; see the module docstring."""
+
+    def __init__(self, task: str) -> None:
+        self.host = LiberoEnv(task, image_size=16)  # no images are read; keep renders small
+        self.env = self.host.env.env  # robosuite's environment under LIBERO's wrapper
+
+    def _reset(self, init: int) -> None:
+        self.host.reset(seed=0, options={"init_state": init})
+
+    def model(self) -> dict[str, Any]:
+        env = self.env
+        self.host.env.seed(0)
+        self.host.env.reset()  # the controller's state as every episode's reset leaves it
+        robot = env.robots[0]
+        ctrl = robot.controller
+        gripper = robot.gripper
+        m = env.sim.model._model
+        low, high = robot.torque_limits
+        return {
+            "xml": env.model.get_xml(),
+            "mujoco_version": __import__("mujoco").__version__,
+            "body_names": [m.body(i).name for i in range(m.nbody)],
+            "body_mass": m.body_mass.copy(),
+            "body_inertia": m.body_inertia.copy(),
+            "body_ipos": m.body_ipos.copy(),
+            "body_iquat": m.body_iquat.copy(),
+            # LIBERO places its fixtures by writing the compiled model's body poses at reset
+            # (the same poses at every reset); the MJCF holds their defaults
+            "body_pos": m.body_pos.copy(),
+            "body_quat": m.body_quat.copy(),
+            "nq": int(m.nq),
+            "nv": int(m.nv),
+            "init_states": np.asarray(self.host.init_states, np.float64),
+            "settle_steps": SETTLE_STEPS,
+            "settle_action": DUMMY_ACTION.astype(np.float64),
+            "n_substeps": round(env.control_timestep / env.model_timestep),
+            "eef_site": ctrl.eef_name,
+            "eef_body": robot.robot_model.eef_name,
+            "arm_joints": [m.joint(int(j)).name for j in robot._ref_joint_indexes],
+            "arm_actuators": [m.actuator(int(a)).name for a in robot._ref_joint_actuator_indexes],
+            "gripper_actuators": list(gripper.actuators),
+            "gripper_joints": list(robot.gripper_joints),
+            "gripper_speed": float(gripper.speed),
+            "gripper_action_after_reset": np.asarray(gripper.current_action, np.float64),
+            "kp": np.asarray(ctrl.kp, np.float64),
+            "kd": np.asarray(ctrl.kd, np.float64),
+            "input_min": np.asarray(ctrl.input_min, np.float64),
+            "input_max": np.asarray(ctrl.input_max, np.float64),
+            "output_min": np.asarray(ctrl.output_min, np.float64),
+            "output_max": np.asarray(ctrl.output_max, np.float64),
+            "uncouple_pos_ori": bool(ctrl.uncoupling),
+            "nullspace_pose": np.asarray(ctrl.initial_joint, np.float64),
+            "torque_low": np.asarray(low, np.float64),
+            "torque_high": np.asarray(high, np.float64),
+            "goal_ori_after_reset": np.asarray(ctrl.goal_ori, np.float64),
+            # what the controller last read, at `reset`: its first step after
+            # `set_init_state` reads nothing new (robosuite's `update` runs only after a
+            # `run_controller`), so that step's goal and first torques come from these
+            "stale_ee_pos": np.asarray(ctrl.ee_pos, np.float64),
+            "stale_ee_mat": np.asarray(ctrl.ee_ori_mat, np.float64),
+            "stale_jac": np.asarray(ctrl.J_full, np.float64),
+            "stale_mass": np.asarray(ctrl.mass_matrix, np.float64),
+            "stale_q": np.asarray(ctrl.joint_pos, np.float64),
+            "stale_qd": np.asarray(ctrl.joint_vel, np.float64),
+            "stale_pending": bool(not ctrl.new_update),
+            "check": {
+                "interpolator": ctrl.interpolator_pos is None and ctrl.interpolator_ori is None,
+                "impedance_mode": ctrl.impedance_mode,
+                "use_delta": bool(ctrl.use_delta),
+                "use_ori": bool(ctrl.use_ori),
+                "position_limits": ctrl.position_limits is None,
+                "orientation_limits": ctrl.orientation_limits is None,
+            },
+        }
+
+    def observation_substep(self, steps: int = 20) -> int:
+        """Which physics step of a control step (1-based) robosuite's observation is read
+        after: its observables sample on a timer that it advances by the physics step and
+        compares with the 20 Hz period in floating point, and the end-effector position it
+        returns matches the data one particular physics step left (measured here, and
+        required to be the same at every step)."""
+        self._reset(0)
+        sim = self.env.sim
+        m, d = sim.model._model, sim.data._data
+        site = m.site(self.env.robots[0].controller.eef_name).id
+        seen: list[np.ndarray] = []
+        step = sim.step
+
+        def recording_step() -> None:
+            step()
+            seen.append(d.site_xpos[site].copy())
+
+        sim.step = recording_step
+        try:
+            found = set()
+            rng = np.random.default_rng(0)
+            for _ in range(steps):
+                seen.clear()
+                raw, _, _, _ = self.host.env.step(rng.uniform(-1.0, 1.0, 7))
+                match = [k for k, p in enumerate(seen) if np.array_equal(p, raw["robot0_eef_pos"])]
+                found.add(match[0] + 1 if match else -1)
+        finally:
+            sim.step = step
+        if len(found) != 1 or -1 in found:
+            raise ValueError(f"robosuite's observation follows no one physics step: {found}")
+        return found.pop()
+
+    def goal(self) -> list[dict[str, Any]]:
+        """The task's BDDL goal (a conjunction) as data the mirror evaluates in JAX: one
+        dict per atom, with what LIBERO's predicate reads (see `openral_mjx.benchmarks.libero.
+        mirror.goal`). Joint thresholds are found by bisecting LIBERO's own methods."""
+        env = self.env
+        goal = env.parsed_problem["goal_state"]
+        return [self._atom(atom[0].lower(), atom[1:]) for atom in goal]
+
+    def _body(self, name: str) -> str:
+        m = self.env.sim.model._model
+        return m.body(int(self.env.obj_body_id[name])).name
+
+    def _contact_geoms(self, name: str) -> list[str]:
+        """The geoms robosuite's `check_contact` reads for object `name`, those that can
+        collide (a geom that cannot is never in MuJoCo's contact list)."""
+        m = self.env.sim.model._model
+        names = self.env.get_object(name).contact_geoms
+        return [
+            g for g in names if m.geom_contype[m.geom(g).id] or m.geom_conaffinity[m.geom(g).id]
+        ]
+
+    def _site(self, name: str) -> dict[str, Any]:
+        m = self.env.sim.model._model
+        site = m.site(name)
+        region = self.env.object_sites_dict[name]
+        return {
+            "site_body": m.body(int(site.bodyid[0])).name,
+            "site_pos": [float(v) for v in site.pos],
+            "site_quat": [float(v) for v in site.quat],
+            "size": [float(v) for v in region.size],
+        }
+
+    def _atom(self, predicate: str, args: list[str]) -> dict[str, Any]:
+        states = self.env.object_states_dict
+        if predicate == "on":
+            obj, target = args
+            if states[target].object_state_type != "site":
+                return {
+                    "kind": "on_object",
+                    "obj": self._body(obj),
+                    "target": self._body(target),
+                    "contact": [self._contact_geoms(target), self._contact_geoms(obj)],
+                }
+            region = self.env.object_sites_dict[target]
+            if not hasattr(region, "under"):
+                return {"kind": "true"}
+            parent = states[target].parent_name
+            has_parent = self.env.get_object(parent) is not None
+            return {
+                "kind": "on_site",
+                "obj": self._body(obj),
+                **self._site(target),
+                "contact": [self._contact_geoms(parent), self._contact_geoms(obj)]
+                if has_parent
+                else [],
+            }
+        if predicate == "in":
+            obj, target = args
+            if states[target].object_state_type != "site":
+                raise ValueError(f"In({obj}, {target}): only regions (sites) hold objects")
+            return {"kind": "in_site", "obj": self._body(obj), **self._site(target)}
+        if predicate in ("open", "close", "turnon", "turnoff"):
+            (name,) = args
+            state = states[name]
+            if state.object_state_type == "site":
+                joints = self.env.object_sites_dict[name].joints
+                owner = self.env.get_object(state.parent_name)
+            else:
+                joints = self.env.get_object(name).joints
+                owner = self.env.get_object(name)
+            method = getattr(owner, _METHODS[predicate])
+            m = self.env.sim.model._model
+            limits = [m.joint(j).range for j in joints]
+            thresholds = [_threshold(method, lo, hi) for lo, hi in limits]
+            return {
+                "kind": "joints",
+                "joints": list(joints),
+                "threshold": [t for t, _, _ in thresholds],
+                "above": [a for _, a, _ in thresholds],
+                "inclusive": [i for _, _, i in thresholds],
+                "all": predicate in ("close", "turnoff"),  # LIBERO: every joint; else any
+            }
+        raise ValueError(f"LIBERO predicate {predicate!r} is not mirrored")
+
+    def check_success(self, states: np.ndarray) -> np.ndarray:
+        """LIBERO's goal (`_check_success`) at each flattened ``[time, qpos, qvel]`` state,
+        after a forward pass (contacts and poses of that state)."""
+        sim = self.env.sim
+        out = []
+        for state in np.asarray(states, np.float64):
+            sim.set_state_from_flattened(state)
+            sim.forward()
+            out.append(bool(self.env._check_success()))
+        return np.array(out)
+
+    def rollout(self, init: int, actions: np.ndarray) -> dict[str, np.ndarray]:
+        """Reset to initial state `init` (and LIBERO's settle steps), then play `actions`
+        ((T, 7)); per step 0..T: qpos, qvel, the lerobot state, the success predicate."""
+        self._reset(init)
+        sim = self.env.sim
+        qpos, qvel, state, success = [], [], [], []
+
+        def record(done: bool) -> None:
+            qpos.append(np.array(sim.data.qpos))
+            qvel.append(np.array(sim.data.qvel))
+            raw = self.env._get_observations()
+            state.append(self.host._obs(raw)["state"])
+            success.append(done)
+
+        record(False)
+        for a in np.asarray(actions, np.float64):
+            self.host.env.step(a)
+            record(bool(self.env._check_success()))
+        return {
+            "qpos": np.stack(qpos),
+            "qvel": np.stack(qvel),
+            "state": np.stack(state),
+            "success": np.array(success),
+        }
+
+
+def _threshold(method: Any, lo: float, hi: float) -> tuple[float, bool, bool]:
+    """(T, above, inclusive) with ``method(q) == (q > T)`` (above; ``q >= T`` if inclusive)
+    or ``(q < T)`` (``q <= T``) on the joint's range widened by 1: LIBERO's articulation
+    predicates are one-sided thresholds on round numbers (found to 12 decimals)."""
+    grid = np.linspace(lo - 1.0, hi + 1.0, 4001)
+    values = np.array([bool(method(q)) for q in grid])
+    flips = np.flatnonzero(values[1:] != values[:-1])
+    if len(flips) != 1:
+        raise ValueError(f"{method.__qualname__} is not a single threshold on [{lo}, {hi}]")
+    a, b = grid[flips[0]], grid[flips[0] + 1]
+    above = bool(values[-1])
+    for _ in range(60):
+        mid = 0.5 * (a + b)
+        if bool(method(mid)) == above:
+            b = mid
+        else:
+            a = mid
+    t = round(0.5 * (a + b), 12)
+    return t, above, bool(method(t)) == above

@@ -1,0 +1,154 @@
+"""A LIBERO task's model and facts for the mirror: exported once from LIBERO, then cached.
+
+LIBERO (hf-libero, robosuite 1.4, mujoco 3.8) cannot share this environment, so its task
+construction runs in the ``lerobot-libero`` worker environment (`export`), and what it returns
+is kept under ``~/.cache/openral_mjx/libero_mjx/<suite>/<index>/`` (``OPENRAL_MJX_LIBERO_MODELS``
+moves it): the composed MJCF, the body inertials robosuite's compile gave, the shipped initial
+states and the controller's constants. Later runs read the cache and start no worker.
+
+`physics_spec` turns the MJCF into the model the mirror simulates: visual-only geoms and the
+assets only they use are dropped (LIBERO's visual meshes hold 0.6-1.1 M vertices against 7 k
+for collision), every body's inertial is pinned to the exported one, so the dynamics do not
+depend on how our MuJoCo infers inertia from what is left, and every body's pose to the one
+LIBERO's reset writes (its fixtures: cabinets, stoves, racks are placed that way).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import json
+import os
+import tempfile
+from pathlib import Path
+from typing import Any
+
+import mujoco
+import numpy as np
+
+from openral_mjx.core.errors import ConfigError
+from openral_mjx.host.envs import ensure_env, envs_root
+from openral_mjx.host.pool import RemoteError, Worker, WorkerFailure
+
+ENV = "lerobot-libero"
+FACTORY = "openral_mjx.benchmarks.libero.export:TaskExport"
+TIMEOUT_S = 900.0
+FORMAT = 5  # bump when `TaskExport.model`'s content changes: older caches are rebuilt
+
+
+def models_root() -> Path:
+    return Path(os.environ.get("OPENRAL_MJX_LIBERO_MODELS", envs_root().parent / "libero_mjx"))
+
+
+@dataclasses.dataclass(frozen=True)
+class TaskModel:
+    """One task's export (see `openral_mjx.benchmarks.libero.export`)."""
+
+    task: str
+    xml: str
+    arrays: dict[str, np.ndarray]
+    meta: dict[str, Any]
+
+    @property
+    def init_states(self) -> np.ndarray:
+        return self.arrays["init_states"]
+
+    @property
+    def goal(self) -> list[dict[str, Any]]:
+        """The BDDL goal's atoms (all must hold), as `TaskExport.goal` describes them."""
+        return list(self.meta["goal"])
+
+
+def _task_dir(task: str) -> Path:
+    suite, _, index = task.partition("/")
+    return models_root() / suite / index
+
+
+def _read(task: str) -> TaskModel | None:
+    d = _task_dir(task)
+    try:
+        meta = json.loads((d / "meta.json").read_text())
+        if meta.get("format") != FORMAT:
+            return None
+        with np.load(d / "arrays.npz") as z:
+            arrays = {k: z[k] for k in z.files}
+        return TaskModel(task, (d / "model.xml").read_text(), arrays, meta)
+    except (OSError, ValueError, KeyError):
+        return None
+
+
+def _export(task: str) -> TaskModel:
+    """Run LIBERO's task construction in a worker and cache what it returns."""
+    python = ensure_env(ENV)
+    log = Path(tempfile.mkdtemp(prefix="openral_mjx_libero_export_")) / "worker.log"
+    worker = Worker(python, {"MUJOCO_GL": "egl"}, log, name=f"libero export {task}")
+    try:
+        worker.call({"op": "init", "factory": FACTORY, "kwargs": {"task": task}}, TIMEOUT_S)
+        out = worker.call({"op": "call", "method": "model", "kwargs": {}}, TIMEOUT_S)
+        for method in ("goal", "observation_substep"):
+            msg = {"op": "call", "method": method, "kwargs": {}}
+            out[method] = worker.call(msg, TIMEOUT_S)
+    except (RemoteError, WorkerFailure) as e:
+        raise ConfigError(f"exporting LIBERO task {task!r} failed: {e} (log: {log})") from None
+    finally:
+        worker.close()
+    arrays = {k: np.asarray(v) for k, v in out.items() if isinstance(v, np.ndarray)}
+    meta = {k: v for k, v in out.items() if k != "xml" and not isinstance(v, np.ndarray)}
+    meta["format"] = FORMAT
+    d = _task_dir(task)
+    d.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(dir=d.parent, prefix=f".{d.name}."))
+    (tmp / "model.xml").write_text(out["xml"])
+    np.savez(tmp / "arrays.npz", **arrays)
+    (tmp / "meta.json").write_text(json.dumps(meta, indent=1, default=_plain))
+    for name in ("model.xml", "arrays.npz", "meta.json"):  # meta.json last: it marks it whole
+        os.replace(tmp / name, d / name)
+    tmp.rmdir()
+    return _read(task) or TaskModel(task, out["xml"], arrays, meta)
+
+
+def _plain(value: Any) -> Any:
+    """numpy values in the export's JSON part as plain lists and numbers."""
+    if isinstance(value, np.ndarray | np.generic):
+        return value.tolist()
+    raise TypeError(f"cannot store {type(value).__name__} in a LIBERO export")
+
+
+@functools.cache
+def load_task(task: str) -> TaskModel:
+    """Task ``suite/index``'s export, from the cache or exported now (about 20 s)."""
+    return _read(task) or _export(task)
+
+
+def physics_spec(model: TaskModel) -> mujoco.MjSpec:
+    """The mirror's model of the task: collision geoms only, exported inertials pinned."""
+    spec = mujoco.MjSpec.from_string(model.xml)
+    for geom in list(spec.geoms):
+        if geom.contype == 0 and geom.conaffinity == 0:
+            spec.delete(geom)
+    used = {g.meshname for g in spec.geoms if g.meshname}
+    for mesh in list(spec.meshes):
+        if mesh.name not in used:
+            spec.delete(mesh)
+    used_materials = {g.material for g in spec.geoms if g.material}
+    for material in list(spec.materials):
+        if material.name not in used_materials:
+            spec.delete(material)
+    used_textures = {t for mat in spec.materials for t in mat.textures if t}
+    for texture in list(spec.textures):
+        if texture.name not in used_textures:
+            spec.delete(texture)
+    names = [str(n) for n in model.meta["body_names"]]
+    a = model.arrays
+    for i, name in enumerate(names[1:], start=1):  # the world body has no inertial
+        body = spec.body(name)
+        if body is None:
+            raise ConfigError(f"LIBERO task {model.task}: body {name!r} missing from its MJCF")
+        body.explicitinertial = True
+        body.mass = float(a["body_mass"][i])
+        body.inertia = a["body_inertia"][i]
+        body.ipos = a["body_ipos"][i]
+        body.iquat = a["body_iquat"][i]
+        body.pos = a["body_pos"][i]  # where LIBERO's reset puts the fixtures
+        body.quat = a["body_quat"][i]
+    return spec

@@ -1,0 +1,26 @@
+"""`libero_mjx` options."""
+
+from __future__ import annotations
+
+import dataclasses
+
+from openral_mjx.benchmarks.libero.host_scene import SUITES, parse_task
+from openral_mjx.core.options import check
+
+
+@dataclasses.dataclass(frozen=True)
+class LiberoMjxOptions:
+    """The LIBERO task (``suite/index``, as on the `libero` host scene) and the episode limit
+    (default: the suite's, as lerobot's LIBERO evaluation sets it)."""
+
+    task: str = "libero_spatial/0"
+    max_steps: int | None = None
+
+    def __post_init__(self) -> None:
+        parse_task(self.task)
+        if self.max_steps is not None:
+            check(self.max_steps >= 1, f"option max_steps={self.max_steps}: must be >= 1")
+
+    @property
+    def episode_limit(self) -> int:
+        return self.max_steps or SUITES[parse_task(self.task)[0]][1]

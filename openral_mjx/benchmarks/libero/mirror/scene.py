@@ -1,0 +1,271 @@
+"""`libero_mjx`: a LIBERO task on our backends (`c`, `mjx`, `warp`), seed for seed LIBERO's.
+
+The model is the MJCF LIBERO's own task construction composes (`assets`, exported from the
+``lerobot-libero`` worker environment), simulated without its visual meshes. What the scene
+reproduces of LIBERO's `OffScreenRenderEnv` (robosuite 1.4):
+
+- **Reset**: seed s starts from the task's shipped initial state ``s mod 50``, as on the
+  `libero` host scene, then LIBERO's 10 settle steps with the arm held and the gripper
+  opening. The controller starts as robosuite's `reset` leaves it (`controller`).
+- **Action**: 7-D in [-1, 1], OSC_POSE deltas and the gripper, at 20 Hz over 25 physics steps
+  of 2 ms, the torques recomputed every physics step (`controller`).
+- **Observation**: lerobot's LIBERO ``state``: end-effector position, its orientation as
+  axis-angle, the two finger positions (8 floats). robosuite samples its observables on a
+  float timer that comes round at the 24th of the 25 physics steps (the export measures
+  which), reading the data that step leaves: the end-effector pose computed before its
+  integration, the fingers' positions after it.
+- **Success**: the task's BDDL goal, as LIBERO's predicates evaluate it (`goal`); it ends
+  the episode, as on the host scene.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from openral_mjx.benchmarks.libero.host_scene import instruction as host_instruction
+from openral_mjx.benchmarks.libero.mirror.assets import TaskModel, load_task, physics_spec
+from openral_mjx.benchmarks.libero.mirror.controller import (
+    ControllerState,
+    Dynamics,
+    OscGains,
+    RobotDynamics,
+    arm_torques,
+    gripper_step,
+    set_goal,
+)
+from openral_mjx.benchmarks.libero.mirror.goal import Goal
+from openral_mjx.benchmarks.libero.mirror.options import LiberoMjxOptions
+from openral_mjx.physics import PhysicsSettings, PhysicsState, QuantitySpec, make_backend
+from openral_mjx.scenes.base import Scene, State, obs_slices
+
+OBS_SIZES = {"state": 8}
+
+
+def axis_angle(quat_wxyz: jax.Array) -> jax.Array:
+    """robosuite's `quat2axisangle` of a unit quaternion (w, x, y, z)."""
+    w = jnp.clip(quat_wxyz[0], -1.0, 1.0)
+    s = jnp.sqrt(1.0 - w * w)
+    angle = 2.0 * jnp.arccos(w)
+    return jnp.where(s < 1e-8, 0.0, quat_wxyz[1:] * angle / jnp.where(s < 1e-8, 1.0, s))
+
+
+def gains(model: TaskModel, ctrlrange: np.ndarray, gripper_ids: np.ndarray) -> OscGains:
+    a = model.arrays
+    f32 = lambda k: np.asarray(a[k], np.float32)  # noqa: E731
+    return OscGains(
+        kp=f32("kp"),
+        kd=f32("kd"),
+        input_min=f32("input_min"),
+        input_max=f32("input_max"),
+        output_min=f32("output_min"),
+        output_max=f32("output_max"),
+        nullspace_pose=f32("nullspace_pose"),
+        torque_low=f32("torque_low"),
+        torque_high=f32("torque_high"),
+        gripper_speed=float(model.meta["gripper_speed"]),
+        gripper_low=ctrlrange[gripper_ids, 0].astype(np.float32),
+        gripper_high=ctrlrange[gripper_ids, 1].astype(np.float32),
+    )
+
+
+class LiberoMjx(Scene):
+    """One LIBERO task on a MuJoCo backend (see the module docstring)."""
+
+    name = "libero_mjx"
+    robot_name = "panda"
+
+    def __init__(
+        self,
+        options: LiberoMjxOptions | None = None,
+        *,
+        backend: str = "auto",
+        settings: PhysicsSettings | None = None,
+    ) -> None:
+        self.options = o = options or LiberoMjxOptions()
+        self.task = o.task
+        self.export = t = load_task(o.task)
+        self.spec = physics_spec(t)
+        meta = t.meta
+        self.goal = Goal.build(t.goal, self.spec.compile())
+        self.backend = make_backend(
+            backend,
+            self.spec,
+            QuantitySpec(
+                bodies=(meta["eef_body"], *self.goal.bodies),
+                sites=(meta["eef_site"],),
+                contacts=self.goal.contacts,
+            ),
+            1,  # the controller acts at every physics step; `step` runs them
+            settings,
+        )
+        m = self.mj_model
+        self.n_substeps = int(meta["n_substeps"])
+        self.observed_substep = int(meta["observation_substep"])
+        self.dynamics = RobotDynamics(self.spec, meta["arm_joints"], meta["eef_site"])
+        joint = lambda n: m.joint(n)  # noqa: E731
+        self._robot_qpos = np.array([joint(n).qposadr[0] for n in self.dynamics.qpos_names])
+        self._robot_dofs = np.array([joint(n).dofadr[0] for n in self.dynamics.qpos_names])
+        self._arm_q = np.array([joint(n).qposadr[0] for n in meta["arm_joints"]])
+        self._arm_v = np.array([joint(n).dofadr[0] for n in meta["arm_joints"]])
+        self._fingers = np.array([joint(n).qposadr[0] for n in meta["gripper_joints"]])
+        arm_act = np.array([m.actuator(n).id for n in meta["arm_actuators"]])
+        grip_act = np.array([m.actuator(n).id for n in meta["gripper_actuators"]])
+        self._arm_act, self._grip_act = arm_act, grip_act
+        self.gains = gains(t, m.actuator_ctrlrange, grip_act)
+        states = np.asarray(t.init_states, np.float64)
+        self._init_qpos = jnp.asarray(states[:, 1 : 1 + m.nq], jnp.float32)
+        self._init_qvel = jnp.asarray(states[:, 1 + m.nq :], jnp.float32)
+        self._goal_ori = jnp.asarray(t.arrays["goal_ori_after_reset"], jnp.float32)
+        self._settle = (int(meta["settle_steps"]), jnp.asarray(t.arrays["settle_action"]))
+        a = t.arrays
+        f32 = lambda k: jnp.asarray(a[k], jnp.float32)  # noqa: E731
+        # robosuite's controller state from `reset`, which the first step after
+        # `set_init_state` still reads (the bias forces excepted: read fresh every step)
+        self._stale = (
+            Dynamics(
+                f32("stale_ee_pos"), f32("stale_ee_mat"), f32("stale_jac"), f32("stale_mass"), None
+            ),
+            f32("stale_q"),
+            f32("stale_qd"),
+        )
+        self._stale_first = bool(meta["stale_pending"])
+        self._layout = obs_slices(OBS_SIZES)
+
+    # ---- layout ---------------------------------------------------------------------------
+
+    @property
+    def obs_layout(self) -> dict[str, tuple[int, int]]:
+        return dict(self._layout)
+
+    @property
+    def instruction(self) -> str:
+        return host_instruction(self.task)
+
+    @property
+    def max_steps(self) -> int:
+        return self.options.episode_limit
+
+    @property
+    def action_size(self) -> int:
+        return 7
+
+    def action_bounds(self) -> tuple[jax.Array, jax.Array]:
+        return -jnp.ones(7, jnp.float32), jnp.ones(7, jnp.float32)
+
+    @property
+    def n_init_states(self) -> int:
+        return int(self._init_qpos.shape[0])
+
+    # ---- reset ----------------------------------------------------------------------------
+
+    def reset(self, key: jax.Array) -> State:
+        return self.reset_with_seed(jnp.zeros((), jnp.int32), key)
+
+    def reset_with_seed(self, seed: jax.Array, key: jax.Array) -> State:
+        """LIBERO's initial state ``seed mod 50``, then its settle steps."""
+        del key  # LIBERO's protocol draws nothing: the initial state is the seed's
+        return self.reset_from(jnp.asarray(seed) % self.n_init_states)
+
+    def reset_from(self, init: jax.Array) -> State:
+        physics = self.backend.init(self._init_qpos[init], self._init_qvel[init])
+        controller = ControllerState(
+            goal_pos=jnp.zeros(3, jnp.float32),  # every control step sets it
+            goal_ori=self._goal_ori,
+            gripper=jnp.zeros(2, jnp.float32),
+        )
+        n, action = self._settle
+        physics, controller, obs = jax.lax.fori_loop(
+            0,
+            n,
+            lambda i, pco: self._control(*pco[:2], action, stale=(i == 0) & self._stale_first),
+            (physics, controller, jnp.zeros(OBS_SIZES["state"], jnp.float32)),
+        )
+        diverged = ~physics.quantities.ok
+        return State(
+            physics=physics,
+            obs=obs,
+            reward=jnp.zeros((), jnp.float32),
+            done=diverged,
+            metrics={"success": jnp.zeros((), bool), "diverged": diverged},
+            info={"controller": controller, "init_state": init.astype(jnp.int32)},
+        )
+
+    def episode_info(self, state: State) -> dict[str, jax.Array]:
+        return {"init_state": state.info["init_state"]}
+
+    def describe_episode(self, info: dict[str, Any]) -> dict[str, Any]:
+        return {"init_state": int(info["init_state"])}
+
+    # ---- step -----------------------------------------------------------------------------
+
+    def _dynamics(self, physics: PhysicsState) -> Any:
+        q = physics.quantities
+        return self.dynamics(q.qpos[self._robot_qpos], q.qvel[self._robot_dofs])
+
+    def _control(
+        self,
+        physics: PhysicsState,
+        controller: ControllerState,
+        action: jax.Array,
+        stale: jax.Array | bool = False,
+    ) -> tuple[PhysicsState, ControllerState, jax.Array]:
+        """One control step: the goal from `action` (set at its first physics step, from the
+        state it starts in), then the physics steps under OSC; returns the new state, the
+        controller and the observation (read after physics step `observed_substep`, as
+        robosuite's observables are). `stale`: the goal and the first physics step's
+        torques read the controller's reset state instead."""
+        g = self.gains
+        old, old_q, old_qd = self._stale
+        nu = self.mj_model.nu
+
+        def substep(i: jax.Array, pco: tuple) -> tuple:
+            p, c, obs = pco
+            q = p.quantities
+            dyn, qa, qda = self._dynamics(p), q.qpos[self._arm_q], q.qvel[self._arm_v]
+            use_old = (i == 0) & stale
+            pick = lambda a, b: jnp.where(use_old, a, b)  # noqa: E731
+            dyn = Dynamics(
+                pick(old.ee_pos, dyn.ee_pos),
+                pick(old.ee_mat, dyn.ee_mat),
+                pick(old.jac, dyn.jac),
+                pick(old.mass, dyn.mass),
+                dyn.bias,  # read fresh from MuJoCo's data by robosuite, always
+            )
+            qa, qda = pick(old_q, qa), pick(old_qd, qda)
+            c = jax.lax.cond(i == 0, lambda c: set_goal(g, c, action[:6], dyn), lambda c: c, c)
+            tau = arm_torques(g, c, dyn, qa, qda)
+            c, fingers = gripper_step(g, c, action[6])
+            ctrl = jnp.zeros(nu, jnp.float32).at[self._arm_act].set(tau)
+            ctrl = ctrl.at[self._grip_act].set(fingers)
+            p = self.backend.step(p, ctrl)
+            obs = jnp.where(i + 1 == self.observed_substep, self._obs(p), obs)
+            return p, c, obs
+
+        obs = jnp.zeros(OBS_SIZES["state"], jnp.float32)
+        return jax.lax.fori_loop(0, self.n_substeps, substep, (physics, controller, obs))
+
+    def step(self, state: State, action: jax.Array) -> State:
+        action = action.astype(jnp.float32)
+        physics, controller, obs = self._control(state.physics, state.info["controller"], action)
+        diverged = ~physics.quantities.ok
+        success = self.goal(physics.quantities, body_offset=1) & ~diverged
+        return state.replace(
+            physics=physics,
+            obs=jnp.where(diverged, 0.0, obs),
+            reward=success.astype(jnp.float32),
+            done=success | diverged,
+            metrics={"success": success, "diverged": diverged},
+            info={**state.info, "controller": controller},
+        )
+
+    # ---- observation ----------------------------------------------------------------------
+
+    def _obs(self, physics: PhysicsState) -> jax.Array:
+        q = physics.quantities
+        return jnp.concatenate(
+            [q.site_pos[0], axis_angle(q.body_quat[0]), q.qpos[self._fingers]]
+        ).astype(jnp.float32)

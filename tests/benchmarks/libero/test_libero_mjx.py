@@ -1,0 +1,164 @@
+"""`libero_mjx` against LIBERO itself (robosuite 1.4 on mujoco 3.8.1, in the `lerobot-libero`
+worker environment) and its robot dynamics against MuJoCo C.
+
+Tolerances: the mirror runs mujoco 4.0.0 and reads float32 quantities, LIBERO mujoco 3.8.1
+in float64. With the arm in free space the two trajectories agree to a few 1e-7 over 20
+random actions, objects and drawers included (measured); 1e-5 leaves room for float32
+rounding growing over the steps, and is far below what the faults these tests caught made:
+0.5 mm for one physics step of staleness in the observation, 3 cm of drawer for fixtures
+left where the MJCF puts them rather than where LIBERO's reset does.
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import mujoco
+import numpy as np
+import pytest
+from worker_envs import require_worker_envs
+
+from openral_mjx.benchmarks.libero.agreement import libero_reference
+from openral_mjx.benchmarks.libero.mirror import LiberoMjx, LiberoMjxOptions
+from openral_mjx.benchmarks.libero.mirror.assets import ENV, load_task, physics_spec
+from openral_mjx.benchmarks.libero.mirror.controller import RobotDynamics
+
+require_worker_envs(ENV)
+pytestmark = pytest.mark.worker
+
+TASK = "libero_goal/0"  # the open-drawer task: a joint predicate, the arm in free space
+
+
+@pytest.fixture(scope="module")
+def scene() -> LiberoMjx:
+    return LiberoMjx(LiberoMjxOptions(task=TASK), backend="c")
+
+
+def test_robot_dynamics_match_mujoco_c() -> None:
+    """End-effector pose, Jacobian, the arm's mass matrix and bias forces, as robosuite reads
+    them from MuJoCo, from the robot-only model in float32."""
+    export = load_task(TASK)
+    spec = physics_spec(export)
+    m = spec.compile()
+    dyn = RobotDynamics(spec, export.meta["arm_joints"], export.meta["eef_site"])
+    robot_q = [m.joint(n).qposadr[0] for n in dyn.qpos_names]
+    robot_v = [m.joint(n).dofadr[0] for n in dyn.qpos_names]
+    arm = [m.joint(n).dofadr[0] for n in export.meta["arm_joints"]]
+    site = m.site(export.meta["eef_site"]).id
+    call = jax.jit(dyn)
+    rng = np.random.default_rng(0)
+    d = mujoco.MjData(m)
+    for init in (0, 17, 33):
+        state = export.init_states[init]
+        d.qpos[:], d.qvel[:] = state[1 : 1 + m.nq], state[1 + m.nq :]
+        d.qpos[robot_q] += rng.normal(0.0, 0.2, len(robot_q)) * (np.arange(len(robot_q)) < 7)
+        d.qvel[robot_v] = rng.normal(0.0, 0.5, len(robot_v))
+        mujoco.mj_forward(m, d)
+        jacp, jacr = np.zeros((3, m.nv)), np.zeros((3, m.nv))
+        mujoco.mj_jacSite(m, d, jacp, jacr, site)
+        mass = np.zeros((m.nv, m.nv))
+        mujoco.mj_fullM(m, d, mass)
+        got = call(jnp.asarray(d.qpos[robot_q]), jnp.asarray(d.qvel[robot_v]))
+        np.testing.assert_allclose(got.ee_pos, d.site_xpos[site], atol=1e-6)
+        np.testing.assert_allclose(got.ee_mat.ravel(), d.site_xmat[site], atol=1e-6)
+        np.testing.assert_allclose(got.jac, np.vstack([jacp, jacr])[:, arm], atol=1e-5)
+        np.testing.assert_allclose(got.mass, mass[np.ix_(arm, arm)], atol=1e-5, rtol=1e-5)
+        np.testing.assert_allclose(got.bias, d.qfrc_bias[arm], atol=1e-4, rtol=1e-5)
+
+
+def test_same_initial_state_and_actions_give_libero_s_observations(
+    scene: LiberoMjx, libero
+) -> None:
+    """Seed s's reset (initial state s mod 50 and the settle) and then the same random
+    actions: lerobot's state and every joint (robot, objects, drawers) as LIBERO gives them,
+    step by step."""
+    actions = np.random.default_rng(1).uniform(-1.0, 1.0, (20, 7)).astype(np.float32)
+    reset, step = jax.jit(scene.reset_with_seed), jax.jit(scene.step)
+    for seed in (0, 57):  # 57: initial state 7
+        ref = libero.rollout(seed % 50, actions)
+        state = reset(jnp.int32(seed), jax.random.PRNGKey(seed))
+        states, qpos = [np.asarray(state.obs)], [np.asarray(state.physics.quantities.qpos)]
+        for a in actions:
+            state = step(state, jnp.asarray(a))
+            states.append(np.asarray(state.obs))
+            qpos.append(np.asarray(state.physics.quantities.qpos))
+        np.testing.assert_allclose(np.stack(states), ref["state"], atol=1e-5)
+        np.testing.assert_allclose(np.stack(qpos), ref["qpos"], atol=1e-5)
+        assert not np.asarray(state.metrics["diverged"])
+
+
+@pytest.fixture(scope="module")
+def libero():
+    with libero_reference(TASK) as reference:
+        yield reference
+
+
+def goal_states(scene: LiberoMjx, n: int, seed: int) -> np.ndarray:
+    """States around the goal: initial state 0 with each atom's joints near their thresholds,
+    then each atom's object moved near its target (into, onto and through it), wherever
+    those joints put the target."""
+    m, goal = scene.mj_model, scene.goal
+    base = np.asarray(scene.export.init_states[0], np.float64)
+    rng = np.random.default_rng(seed)
+    states = np.repeat(base[None], n, axis=0)
+    for atom in goal.atoms:
+        for joint, threshold in zip(atom.get("joints", ()), atom.get("threshold", ()), strict=True):
+            j = m.joint(joint)
+            low, high = m.jnt_range[j.id]
+            states[:, 1 + j.qposadr[0]] = np.clip(
+                threshold + rng.uniform(-0.05, 0.05, n), low, high
+            )
+    init = jax.jit(jax.vmap(scene.backend.init))
+    q = init(jnp.asarray(states[:, 1 : 1 + m.nq]), jnp.asarray(states[:, 1 + m.nq :]))
+    q = q.quantities
+    for atom in goal.atoms:
+        if "obj" not in atom:
+            continue
+        if "site_body" in atom:
+            centre = jax.vmap(lambda q, atom=atom: goal._site(q, 1, atom)[0])(q)
+        else:
+            centre = q.body_pos[:, 1 + goal.bodies.index(atom["target"])]
+        body = m.body(atom["obj"]).id
+        while m.body_jntnum[body] == 0:  # the object's free joint may sit above its body
+            body = m.body_parentid[body]
+        adr = 1 + m.jnt_qposadr[m.body_jntadr[body]]
+        # where the object's body is, from where its free joint puts it
+        offset = np.asarray(q.body_pos[:, 1 + goal.bodies.index(atom["obj"])], np.float64)
+        offset = offset - states[:, adr : adr + 3]
+        spread = rng.uniform([-0.05, -0.05, -0.03], [0.05, 0.05, 0.08], (n, 3))
+        states[:, adr : adr + 3] = np.asarray(centre, np.float64) + spread - offset
+    return states
+
+
+def check_goal(scene: LiberoMjx, libero, seed: int = 2) -> None:
+    states = goal_states(scene, 96, seed)
+    m = scene.mj_model
+    expected = libero.check_success(states)
+    physics = jax.jit(jax.vmap(scene.backend.init))(
+        jnp.asarray(states[:, 1 : 1 + m.nq]), jnp.asarray(states[:, 1 + m.nq :])
+    )
+    got = np.asarray(jax.vmap(lambda q: scene.goal(q, body_offset=1))(physics.quantities))
+    assert 0 < expected.sum() < len(expected), "the states must hold both outcomes"
+    np.testing.assert_array_equal(got, expected)
+
+
+def test_goal_agrees_with_libero_s_predicates(scene: LiberoMjx, libero) -> None:
+    """LIBERO's own `_check_success` and the mirror's goal on the same states (see
+    `goal_states`): Open(drawer), a joint threshold."""
+    check_goal(scene, libero)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    "task",
+    [
+        "libero_spatial/0",  # On(bowl, plate): heights, contact, 3 cm
+        "libero_object/0",  # In(can, basket region)
+        "libero_goal/1",  # On(bowl, stove region): its under test and contact
+        "libero_10/3",  # Close(drawer) and In(bowl, drawer region)
+    ],
+)
+def test_goal_agrees_with_libero_s_predicates_on_every_kind(task: str) -> None:
+    """As above, on a task of each other predicate."""
+    with libero_reference(task) as reference:
+        check_goal(LiberoMjx(LiberoMjxOptions(task=task), backend="c"), reference)

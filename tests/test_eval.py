@@ -5,18 +5,11 @@ import subprocess
 import sys
 
 import pytest
+from cli_runs import run_cli
 
 from openral_mjx import eval as eval_cli
 from openral_mjx.report import load_report
 from openral_mjx.stats import clopper_pearson_interval
-
-
-def run_cli(monkeypatch, capsys, *argv):
-    monkeypatch.setattr(sys, "argv", ["openral_mjx.eval", *argv])
-    with pytest.raises(SystemExit) as exc:
-        eval_cli.main()
-    out, err = capsys.readouterr()
-    return exc.value.code, out, err
 
 
 def test_small_eval_writes_report(monkeypatch, capsys, tmp_path):
@@ -135,8 +128,8 @@ def test_task_and_suite_help_come_from_the_registry(monkeypatch, capsys):
     [
         (
             ["--scene", "nope"],
-            "unknown scene 'nope'; valid: aloha, libero, maniskill, metaworld, metaworld_mjx, "
-            "point_reach, pusht, robosuite, so101_box, tabletop_push",
+            "unknown scene 'nope'; valid: aloha, libero, libero_mjx, maniskill, metaworld, "
+            "metaworld_mjx, point_reach, pusht, robosuite, so101_box, tabletop_push",
         ),
         (["--scene", "so101_box", "--robot", "ur5"], "scene 'so101_box' requires robot 'so101'"),
         (
@@ -250,7 +243,7 @@ def test_process_exit_code_and_no_traceback(tmp_path):
     )
     assert proc.returncode == 2
     assert proc.stderr.strip() == (
-        "error: unknown scene 'nope'; valid: aloha, libero, maniskill, metaworld, "
+        "error: unknown scene 'nope'; valid: aloha, libero, libero_mjx, maniskill, metaworld, "
         "metaworld_mjx, point_reach, pusht, robosuite, so101_box, tabletop_push"
     )
     assert not (tmp_path / "r").exists()

@@ -18,6 +18,7 @@ import time
 from pathlib import Path
 
 import pytest
+from cli_runs import run_cli
 
 from openral_mjx import eval as eval_cli
 from openral_mjx.evaluation import suite as suite_module
@@ -29,14 +30,6 @@ ARMS = Path(__file__).parent / "data" / "arms"
 
 COMMON = ["--backend", "c", "--n-envs", "8", "--max-steps", "15", "--threads", "1"]
 SWEEP = [*COMMON, "--no-compile-cache", "--sweep", "friction=0.2:0.6:2"]
-
-
-def run_cli(monkeypatch, capsys, *argv):
-    monkeypatch.setattr(sys, "argv", ["openral_mjx.eval", *argv])
-    with pytest.raises(SystemExit) as exc:
-        eval_cli.main()
-    out, err = capsys.readouterr()
-    return exc.value.code, out, err
 
 
 def stop_at(monkeypatch, name, keyword, at, how):

@@ -41,11 +41,14 @@ def no_worker_envs(monkeypatch):
 
 def test_every_registered_scene_writes_an_instruction(no_worker_envs):
     """Known when the scene is built (host scenes start no worker for it), never the fallback;
-    the MetaWorld mirror says what its host scene says."""
+    the mirrors say what their host scenes say."""
     said = {}
     for name in SCENES.names():
         if name == "metaworld_mjx" and not envs.is_ready("metaworld"):  # its model's files
             said[name] = mw.instruction(scene_options(name).task)
+            continue
+        if name == "libero_mjx" and not envs.is_ready("lerobot-libero"):  # its model's export
+            said[name] = libero.instruction(scene_options(name).task)
             continue
         host = SCENES.get(name).backends == ("host",)
         scene = make_scene(
@@ -58,6 +61,7 @@ def test_every_registered_scene_writes_an_instruction(no_worker_envs):
         finally:
             scene.close()
     assert said["metaworld"] == said["metaworld_mjx"] == "Reach a goal position"
+    assert said["libero"] == said["libero_mjx"]
 
 
 def test_every_task_of_every_suite_has_one():
@@ -65,6 +69,7 @@ def test_every_task_of_every_suite_has_one():
         "metaworld": mw.instruction,
         "metaworld_mjx": mw.instruction,
         "libero": libero.instruction,
+        "libero_mjx": libero.instruction,
         "aloha": aloha.INSTRUCTIONS.__getitem__,
     }
     assert {n for n in SCENES.names() if SCENES.get(n).suites} == set(by_scene)

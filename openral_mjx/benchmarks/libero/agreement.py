@@ -4,15 +4,12 @@ replay actions from an initial state and to judge states by its own goal predica
 from __future__ import annotations
 
 import contextlib
-import tempfile
 from collections.abc import Iterator
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from openral_mjx.benchmarks.libero.mirror.assets import ENV, FACTORY, TIMEOUT_S
-from openral_mjx.host.envs import ensure_env
+from openral_mjx.benchmarks.libero.mirror.assets import TIMEOUT_S, task_worker
 from openral_mjx.host.pool import Worker
 
 
@@ -38,10 +35,5 @@ class LiberoReference:
 @contextlib.contextmanager
 def libero_reference(task: str) -> Iterator[LiberoReference]:
     """LIBERO's env for `task` (``suite/index``) in a worker, closed on exit."""
-    log = Path(tempfile.mkdtemp(prefix="openral_mjx_libero_")) / "worker.log"
-    worker = Worker(ensure_env(ENV), {"MUJOCO_GL": "egl"}, log, name=f"libero {task}")
-    try:
-        worker.call({"op": "init", "factory": FACTORY, "kwargs": {"task": task}}, TIMEOUT_S)
+    with task_worker(task) as (worker, _):
         yield LiberoReference(worker)
-    finally:
-        worker.close()

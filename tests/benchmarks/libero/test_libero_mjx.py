@@ -40,7 +40,7 @@ def test_robot_dynamics_match_mujoco_c() -> None:
     export = load_task(TASK)
     spec = physics_spec(export)
     m = spec.compile()
-    dyn = RobotDynamics(spec, export.meta["arm_joints"], export.meta["eef_site"])
+    dyn = RobotDynamics(spec, m, export.meta["arm_joints"], export.meta["eef_site"])
     robot_q = [m.joint(n).qposadr[0] for n in dyn.qpos_names]
     robot_v = [m.joint(n).dofadr[0] for n in dyn.qpos_names]
     arm = [m.joint(n).dofadr[0] for n in export.meta["arm_joints"]]

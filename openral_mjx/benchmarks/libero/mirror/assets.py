@@ -15,11 +15,13 @@ LIBERO's reset writes (its fixtures: cabinets, stoves, racks are placed that way
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import functools
 import json
 import os
 import tempfile
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -77,21 +79,30 @@ def _read(task: str) -> TaskModel | None:
         return None
 
 
-def _export(task: str) -> TaskModel:
-    """Run LIBERO's task construction in a worker and cache what it returns."""
-    python = ensure_env(ENV)
-    log = Path(tempfile.mkdtemp(prefix="openral_mjx_libero_export_")) / "worker.log"
-    worker = Worker(python, {"MUJOCO_GL": "egl"}, log, name=f"libero export {task}")
+@contextlib.contextmanager
+def task_worker(task: str) -> Iterator[tuple[Worker, Path]]:
+    """A worker holding LIBERO's `TaskExport` for `task` (``suite/index``), and its log;
+    closed on exit."""
+    log = Path(tempfile.mkdtemp(prefix="openral_mjx_libero_")) / "worker.log"
+    worker = Worker(ensure_env(ENV), {"MUJOCO_GL": "egl"}, log, name=f"libero {task}")
     try:
         worker.call({"op": "init", "factory": FACTORY, "kwargs": {"task": task}}, TIMEOUT_S)
-        out = worker.call({"op": "call", "method": "model", "kwargs": {}}, TIMEOUT_S)
-        for method in ("goal", "observation_substep"):
-            msg = {"op": "call", "method": method, "kwargs": {}}
-            out[method] = worker.call(msg, TIMEOUT_S)
-    except (RemoteError, WorkerFailure) as e:
-        raise ConfigError(f"exporting LIBERO task {task!r} failed: {e} (log: {log})") from None
+        yield worker, log
     finally:
         worker.close()
+
+
+def _export(task: str) -> TaskModel:
+    """Run LIBERO's task construction in a worker and cache what it returns."""
+    log = None
+    try:
+        with task_worker(task) as (worker, log):
+            out = worker.call({"op": "call", "method": "model", "kwargs": {}}, TIMEOUT_S)
+            for method in ("goal", "observation_substep"):
+                msg = {"op": "call", "method": method, "kwargs": {}}
+                out[method] = worker.call(msg, TIMEOUT_S)
+    except (RemoteError, WorkerFailure) as e:
+        raise ConfigError(f"exporting LIBERO task {task!r} failed: {e} (log: {log})") from None
     arrays = {k: np.asarray(v) for k, v in out.items() if isinstance(v, np.ndarray)}
     meta = {k: v for k, v in out.items() if k != "xml" and not isinstance(v, np.ndarray)}
     meta["format"] = FORMAT

@@ -82,8 +82,10 @@ class RobotDynamics:
     150 ms a call on a CPU, against about 1 ms here; the tests check both against MuJoCo C.)
     """
 
-    def __init__(self, spec: mujoco.MjSpec, joints: Sequence[str], site: str) -> None:
-        full = spec.compile()
+    def __init__(
+        self, spec: mujoco.MjSpec, full: mujoco.MjModel, joints: Sequence[str], site: str
+    ) -> None:
+        """`full`: `spec` compiled (where the robot's root body is found)."""
         body = full.body(full.joint(joints[0]).bodyid[0])
         while int(body.parentid[0]) != 0:
             body = full.body(int(body.parentid[0]))

@@ -90,7 +90,8 @@ class LiberoMjx(Scene):
         self.export = t = load_task(o.task)
         self.spec = physics_spec(t)
         meta = t.meta
-        self.goal = Goal.build(t.goal, self.spec.compile())
+        compiled = self.spec.compile()
+        self.goal = Goal.build(t.goal, compiled)
         self.backend = make_backend(
             backend,
             self.spec,
@@ -105,7 +106,7 @@ class LiberoMjx(Scene):
         m = self.mj_model
         self.n_substeps = int(meta["n_substeps"])
         self.observed_substep = int(meta["observation_substep"])
-        self.dynamics = RobotDynamics(self.spec, meta["arm_joints"], meta["eef_site"])
+        self.dynamics = RobotDynamics(self.spec, compiled, meta["arm_joints"], meta["eef_site"])
         joint = lambda n: m.joint(n)  # noqa: E731
         self._robot_qpos = np.array([joint(n).qposadr[0] for n in self.dynamics.qpos_names])
         self._robot_dofs = np.array([joint(n).dofadr[0] for n in self.dynamics.qpos_names])

@@ -32,7 +32,7 @@ class QuantitySpec:
 
     `contacts`: pairs of geom-name sets; each reads whether any geom of the first set touches
     any of the second (in MuJoCo's contact list as the step's collision left it, as
-    ``contact`` sensors find it): robosuite's `check_contact` between two objects. On `c`.
+    ``contact`` sensors find it): robosuite's `check_contact` between two objects.
 
     `poses_after_step`: after a step, report the poses of the state the step ends in (as an
     `mj_forward` after `mj_step` would), not those `mj_step` leaves in MuJoCo's data (computed

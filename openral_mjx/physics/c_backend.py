@@ -33,6 +33,7 @@ from openral_mjx.physics.base import (
     QuantitySpec,
     check_fields,
 )
+from openral_mjx.physics.contact_sensors import add_contact_sensors
 
 _FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS
 # Memory the per-env model copies may take (envs with their own model fields): tabletop_push's
@@ -58,30 +59,6 @@ def default_threads() -> int:
         return len(os.sched_getaffinity(0))
     except AttributeError:  # pragma: no cover - non-Linux
         return os.cpu_count() or 1
-
-
-def contact_side(model: mujoco.MjModel, geoms: tuple[str, ...]) -> list[tuple[Any, str]]:
-    """How `contact` sensors name one side of a pair of geom sets: one body subtree where
-    the set is exactly that subtree's colliding geoms, else each geom by name."""
-    ids = {model.geom(g).id for g in geoms}
-    collide = (model.geom_contype != 0) | (model.geom_conaffinity != 0)
-    for body in sorted({int(model.geom_bodyid[g]) for g in ids}):
-        subtree = {
-            g
-            for g in range(model.ngeom)
-            if collide[g] and _in_subtree(model, int(model.geom_bodyid[g]), body)
-        }
-        if subtree == ids:
-            return [(mujoco.mjtObj.mjOBJ_XBODY, model.body(body).name)]
-    return [(mujoco.mjtObj.mjOBJ_GEOM, model.geom(g).name) for g in sorted(ids)]
-
-
-def _in_subtree(model: mujoco.MjModel, body: int, root: int) -> bool:
-    while body > 0:
-        if body == root:
-            return True
-        body = int(model.body_parentid[body])
-    return root == 0
 
 
 class CBackend(PhysicsBackend):
@@ -142,22 +119,7 @@ class CBackend(PhysicsBackend):
             raise ConfigError(
                 "contact quantities read the step's own collision: no poses_after_step"
             )
-        self._contact_slices = []
-        model = self.mj_model
-        for first, second in quantities.contacts:
-            start = len(s.sensors)
-            for a in contact_side(model, first):
-                for b in contact_side(model, second):
-                    s.add_sensor(
-                        type=mujoco.mjtSensor.mjSENS_CONTACT,
-                        objtype=a[0],
-                        objname=a[1],
-                        reftype=b[0],
-                        refname=b[1],
-                        intprm=[1, 0, 1],  # data "found" (a count), no reduction, one slot
-                        dim=1,
-                    )
-            self._contact_slices.append((start, len(s.sensors)))
+        self._contact_slices = add_contact_sensors(s, self.mj_model, quantities.contacts)
         return s.compile()
 
     # ---- host side (numpy, float64) -------------------------------------------------------

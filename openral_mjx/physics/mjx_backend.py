@@ -33,6 +33,7 @@ from openral_mjx.physics.base import (
     all_finite,
     check_fields,
 )
+from openral_mjx.physics.contact_sensors import add_contact_sensors, sensordata_addresses
 
 _CAP = "max_contact_points"
 
@@ -79,11 +80,19 @@ class MjxBackend(PhysicsBackend):
     exportable = True
 
     def _setup(self, spec: mujoco.MjSpec) -> None:
-        m = self.mj_model
+        self._contact_adr: list[np.ndarray] = []
         if self.quantity_spec.contacts:
-            raise ConfigError(
-                f"contact quantities run on backend 'c' only for now, not {self.name!r}"
+            if self.quantity_spec.poses_after_step:
+                raise ConfigError(
+                    "contact quantities read the step's own collision: no poses_after_step"
+                )
+            with_sensors = spec.copy()
+            ranges = add_contact_sensors(
+                with_sensors, self.mj_model, self.quantity_spec.contacts, subtrees=False
             )
+            self.mj_model = with_sensors.compile()  # ids unchanged: sensors come last
+            self._contact_adr = sensordata_addresses(self.mj_model, ranges)
+        m = self.mj_model
         pairs_cap = numeric(m, "max_geom_pairs")
         if self.impl == "jax" and pairs_cap is not None and pairs_cap >= 0:
             raise ConfigError(
@@ -138,8 +147,17 @@ class MjxBackend(PhysicsBackend):
             geom_quat=mat_to_quat(d.geom_xmat[self._geom_ids]),
             ok=self._data_ok(d),
             sensors=self.read_sensors(d.xpos, d.xquat, fields),
+            contacts=self._touching(d),
         )
         return d, q
+
+    def _touching(self, d: mjx.Data) -> jax.Array | None:
+        """Whether each `QuantitySpec.contacts` pair touches, from the contact sensors the
+        step's forward pass computed (before its integration, as on `c`); all False at
+        `init`, which computes poses only."""
+        if not self._contact_adr:
+            return None
+        return jnp.stack([jnp.sum(d.sensordata[a]) > 0 for a in self._contact_adr])
 
     def model(self, fields: dict[str, jax.Array]) -> mjx.Model:
         """The MJX model with this env's `fields` (under `vmap`, a batched model: MJX reads

@@ -226,6 +226,26 @@ def cylinders_as_prisms(spec: mujoco.MjSpec, sides: int = 16) -> int:
     return changed
 
 
+def for_mjx_jax(spec: mujoco.MjSpec, contacts_per_condim: int) -> dict[str, int]:
+    """Make `spec` collide under MJX's JAX implementation, which has no cylinder-box or
+    cylinder-mesh pair and no contact margin on mesh pairs: colliding cylinders become 16-gon
+    prisms (`cylinders_as_prisms`), colliding geoms lose their margin and gap, and contact
+    slots are capped at `contacts_per_condim` per condim (MJX's ``max_contact_points``; the
+    `mjx` backend counts an env that may exceed it diverged). Returns what changed."""
+    prisms = cylinders_as_prisms(spec)
+    margins = 0
+    for geom in spec.geoms:
+        if (geom.contype or geom.conaffinity) and (geom.margin or geom.gap):
+            geom.margin, geom.gap = 0.0, 0.0
+            margins += 1
+    spec.add_numeric(name="max_contact_points", data=[contacts_per_condim])
+    return {
+        "cylinders_as_prisms": prisms,
+        "margins_zeroed": margins,
+        "contacts_per_condim": contacts_per_condim,
+    }
+
+
 def geom_frame_offsets(
     before: mujoco.MjModel, after: mujoco.MjModel, geoms: Sequence[int]
 ) -> np.ndarray:

@@ -39,10 +39,20 @@ from openral_mjx.benchmarks.libero.mirror.controller import (
 )
 from openral_mjx.benchmarks.libero.mirror.goal import Goal
 from openral_mjx.benchmarks.libero.mirror.options import LiberoMjxOptions
-from openral_mjx.physics import PhysicsSettings, PhysicsState, QuantitySpec, make_backend
+from openral_mjx.physics import (
+    PhysicsSettings,
+    PhysicsState,
+    QuantitySpec,
+    make_backend,
+    resolve_backend_name,
+)
 from openral_mjx.scenes.base import Scene, State, obs_slices
+from openral_mjx.scenes.composition import for_mjx_jax
 
 OBS_SIZES = {"state": 8}
+# MJX contact slots kept per condim on `mjx` (`for_mjx_jax`): LIBERO's scenes hold 18-87
+# active contacts after their settle steps (libero_10/0, libero_spatial/0).
+MJX_CONTACTS_PER_CONDIM = 128
 
 
 def axis_angle(quat_wxyz: jax.Array) -> jax.Array:
@@ -89,6 +99,9 @@ class LiberoMjx(Scene):
         self.task = o.task
         self.export = t = load_task(o.task)
         self.spec = physics_spec(t)
+        self.mjx_changes: dict[str, int] = {}
+        if resolve_backend_name(backend) == "mjx":
+            self.mjx_changes = for_mjx_jax(self.spec, MJX_CONTACTS_PER_CONDIM)
         meta = t.meta
         compiled = self.spec.compile()
         self.goal = Goal.build(t.goal, compiled)

@@ -59,7 +59,7 @@ from openral_mjx.scenes.base import (
     colliding_geoms,
     obs_slices,
 )
-from openral_mjx.scenes.composition import cylinders_as_prisms, geom_frame_offsets
+from openral_mjx.scenes.composition import for_mjx_jax, geom_frame_offsets
 from openral_mjx.scenes.sensor_obs import (
     observed_cameras,
     rendered_lights,
@@ -79,23 +79,9 @@ MJX_CONTACTS_PER_CONDIM = 64
 
 
 def for_mjx(spec: mujoco.MjSpec) -> dict[str, int]:
-    """Make `spec` collide under MJX's JAX implementation, which has no cylinder-box pair and
-    no contact margin on mesh pairs: colliding cylinders become 16-gon prisms, and colliding
-    geoms lose their margin (MetaWorld's claws and pads have 1 mm). Contact slots are capped
-    (`MJX_CONTACTS_PER_CONDIM`). Returns what changed; the agreement table measures the effect
-    (``--backend mjx``)."""
-    prisms = cylinders_as_prisms(spec)
-    margins = 0
-    for geom in spec.geoms:
-        if (geom.contype or geom.conaffinity) and (geom.margin or geom.gap):
-            geom.margin, geom.gap = 0.0, 0.0
-            margins += 1
-    spec.add_numeric(name="max_contact_points", data=[MJX_CONTACTS_PER_CONDIM])
-    return {
-        "cylinders_as_prisms": prisms,
-        "margins_zeroed": margins,
-        "contacts_per_condim": MJX_CONTACTS_PER_CONDIM,
-    }
+    """`for_mjx_jax` with MetaWorld's cap (`MJX_CONTACTS_PER_CONDIM`); the agreement table
+    measures the effect (``--backend mjx``). MetaWorld's claws and pads have 1 mm margins."""
+    return for_mjx_jax(spec, MJX_CONTACTS_PER_CONDIM)
 
 
 def hand_reset_state(m: mujoco.MjModel, hand_init_pos: tuple[float, ...]) -> mujoco.MjData:

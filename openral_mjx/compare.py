@@ -5,10 +5,12 @@ seeds (seed s is the same initial state in both runs, so the two outcomes of a s
 matched pair; pairing removes the between-seed variation): exact McNemar test on the
 discordant pairs and Newcombe's paired interval for rate_B - rate_A. Reports with no seed in
 common (or with `--unpaired`) are compared as independent samples: two-proportion z test or
-Fisher's exact test, Newcombe's hybrid-score interval. Reports of another scene, task or schema
-version are not comparable, and a report that fails validation (a wrong type, a missing field,
-counts that do not add up) or the same file given twice is refused: one line on stderr, exit
-code 2.
+Fisher's exact test, Newcombe's hybrid-score interval. A mirror scene's report and its
+original's (``libero_mjx`` and ``libero``) pair the same way: seed s is one initial state on
+both, and the steps-to-success line says whether one reaches the goal sooner. Reports of
+another scene, task or schema version are not comparable, and a report that fails validation
+(a wrong type, a missing field, counts that do not add up) or the same file given twice is
+refused: one line on stderr, exit code 2.
 
 Example: ``python -m openral_mjx.compare results/random.json results/scripted.json``.
 """
@@ -26,6 +28,7 @@ import tyro
 from openral_mjx.cli.common import guarded, parse
 from openral_mjx.core.errors import ConfigError, unknown
 from openral_mjx.report import load_report
+from openral_mjx.scenes import mirrored
 from openral_mjx.stats import UNPAIRED_TESTS, check_confidence, compare_reports, format_comparison
 
 
@@ -55,7 +58,9 @@ def run(args: CompareArgs) -> int:
             f"reports A and B are the same file ({str(args.a)!r}, {str(args.b)!r}): "
             "compare two runs"
         )
-    rc = compare_reports(a, b, args.confidence, args.unpaired, args.test)
+    rc = compare_reports(
+        a, b, args.confidence, args.unpaired, args.test, mirrored(a.scene, b.scene)
+    )
     print(format_comparison(rc, a, b, (str(args.a), str(args.b))))
     return 0
 

@@ -49,6 +49,7 @@ from openral_mjx.scenes import (
     Scene,
     check_robot,
     check_task,
+    mirrored,
     resolve_scene_backend,
     scene_options,
     scene_suite,
@@ -270,7 +271,7 @@ def validate(args: EvalArgs) -> EvalPlan:
     baseline = None
     if args.compare_with is not None:
         baseline = load_report(args.compare_with)
-        if baseline.scene != args.scene:
+        if baseline.scene != args.scene and not mirrored(baseline.scene, args.scene):
             raise ConfigError(
                 f"reports are not comparable: scene {baseline.scene!r} ({args.compare_with}) "
                 f"vs {args.scene!r}"
@@ -673,7 +674,9 @@ def show(plan: EvalPlan, written: Written) -> None:
     if args.breakdown and report.breakdown:
         print(format_breakdown(report.breakdown, report.confidence))
     if plan.baseline is not None:
-        rc = compare_reports(plan.baseline, report)
+        rc = compare_reports(
+            plan.baseline, report, mirrored=mirrored(plan.baseline.scene, report.scene)
+        )
         names = (str(args.compare_with), str(plan.out))
         print(format_comparison(rc, plan.baseline, report, names))
     if written.frames_file is not None:

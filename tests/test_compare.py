@@ -131,3 +131,42 @@ def test_missing_and_broken_files(monkeypatch, capsys, tmp_path, base):
         with pytest.raises(SystemExit) as exc:
             compare_cli.main()
         assert exc.value.code == 2 and capsys.readouterr().err.startswith("error: report ")
+
+
+def with_steps(report: EvalReport, steps: list[int]) -> EvalReport:
+    """`report` whose episode i reached success at control step ``steps[i]``."""
+    episodes = [
+        dataclasses.replace(
+            e,
+            steps=int(s),
+            metadata={**e.metadata, "first_success_step": int(s) if e.success else -1},
+        )
+        for e, s in zip(report.episodes, steps, strict=True)
+    ]
+    return dataclasses.replace(report, episodes=episodes)
+
+
+def test_a_mirror_pairs_with_its_original_and_reports_steps_to_success(
+    monkeypatch, capsys, tmp_path, base
+):
+    """`libero_mjx` mirrors `libero`: seed s is one initial state, so their reports pair by
+    seed; over the seeds both succeed on (0, 3, 6), B's steps minus A's are 2, 1, 5."""
+    task = {"task": "libero_object/0"}
+    a = with_steps(variant(base, A, scene="libero", **task), [10, 0, 0, 20, 0, 0, 30, 0, 0, 0])
+    b = with_steps(variant(base, B, scene="libero_mjx", **task), [12, 5, 5, 21, 0, 5, 35, 5, 0, 5])
+    code, out, _ = run_compare(monkeypatch, capsys, tmp_path, a, b)
+    assert code == 0
+    assert "paired on 10 common seeds: both succeed 3, only A 0, only B 5, neither 2" in out
+    assert "per-seed agreement 50.0%" in out
+    assert "steps to success where both succeed (3 seeds): median B - A = +2" in out
+    assert "one mirrors the other" in out
+
+
+def test_scenes_that_mirror_nothing_of_each_other_are_not_comparable(
+    monkeypatch, capsys, tmp_path, base
+):
+    a = variant(base, A, scene="libero", task="libero_object/0")
+    b = variant(base, B, scene="metaworld_mjx", task="libero_object/0")
+    code, _, err = run_compare(monkeypatch, capsys, tmp_path, a, b)
+    assert code == 2
+    assert "not comparable: scene 'libero' (A) vs 'metaworld_mjx' (B)" in err

@@ -57,6 +57,8 @@ def build_scene(
     if devices is not None and devices < 1:
         raise ConfigError(f"devices must be >= 1, got {devices}")
     settings = PhysicsSettings(threads=threads, batch_size=n_envs, max_devices=devices)
+    if contacts_per_env is None and name in SCENES:
+        contacts_per_env = SCENES.get(name).contacts_per_env
     if contacts_per_env is not None:
         settings = dataclasses.replace(settings, contacts_per_env=contacts_per_env)
     scene = make_scene(name, options, backend=backend, settings=settings)

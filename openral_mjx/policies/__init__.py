@@ -82,6 +82,7 @@ POLICIES.register("torch")(torch_policy)
 POLICIES.register_lazy(
     "metaworld-expert", "openral_mjx.benchmarks.metaworld.expert:metaworld_expert"
 )
+POLICIES.register_lazy("libero-expert", "openral_mjx.benchmarks.libero.expert:libero_expert")
 
 
 def make_policy(spec: str, scene: Any) -> Policy:

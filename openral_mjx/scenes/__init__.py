@@ -35,6 +35,12 @@ class SceneEntry:
     # the policy ID of the expert its benchmark ships, for a scene with no `scripted_policy`
     # of its own (`--policy scripted` there names it rather than only zero and random)
     expert: str | None = None
+    # the scene this one mirrors seed for seed (its original benchmark run through the host
+    # adapter): seed s is the same initial state on both, so their reports pair by seed
+    mirrors: str | None = None
+    # the `warp` contact capacity per env its models need (None: `PhysicsSettings`'s), where
+    # `--contacts-per-env` does not set one
+    contacts_per_env: int | None = None
 
     def __post_init__(self) -> None:
         if (self.suites is None) != (not self.suite_names):
@@ -80,6 +86,13 @@ def check_task(name: str, task: str | None) -> bool:
     if task == own:
         return False
     raise ConfigError(f"unknown task {task!r} for scene {name!r}; valid: {own} (its only task)")
+
+
+def mirrored(a: str, b: str) -> bool:
+    """Whether scenes `a` and `b` differ and one mirrors the other (`SceneEntry.mirrors`)."""
+    if a == b or a not in SCENES or b not in SCENES:
+        return False
+    return SCENES.get(a).mirrors == b or SCENES.get(b).mirrors == a
 
 
 def scripted_policy(name: str, policy: str) -> str:
@@ -161,6 +174,7 @@ __all__ = [
     "check_robot",
     "check_task",
     "make_scene",
+    "mirrored",
     "resolve_scene_backend",
     "scene_options",
     "scene_suite",

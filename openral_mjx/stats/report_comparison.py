@@ -4,7 +4,10 @@ Seed s is the same initial state in both runs of a scene and task, so the two ou
 shared seed are a matched pair (pairing removes the between-seed variation): exact McNemar
 test and Newcombe's paired interval. Reports with no seed in common (or compared `unpaired`)
 use a two-proportion z test or Fisher's exact test and Newcombe's hybrid-score interval.
-Reports of another scene or task are not comparable (`ConfigError`).
+Reports of another scene or task are not comparable (`ConfigError`), except a mirror scene's
+and its original's (`mirrored`), whose seed s is the same initial state. Where both reports
+succeed on a shared seed, the median difference in steps to success says whether one reaches
+the goal sooner (a mirror whose successes come sooner is not quite the same task).
 """
 
 from __future__ import annotations
@@ -33,11 +36,16 @@ class ReportComparison:
     left_out_a: int
     left_out_b: int
     notes: tuple[str, ...]
+    # over the shared seeds where both succeed: how many, and the median of B's steps to
+    # success minus A's (None: no such seed)
+    both_succeeded: int = 0
+    steps_median_difference: float | None = None
 
 
-def check_comparable(a: EvalReport, b: EvalReport) -> None:
-    """Raise `ConfigError` unless both reports evaluate the same scene and task."""
-    for field in ("scene", "task"):
+def check_comparable(a: EvalReport, b: EvalReport, mirrored: bool = False) -> None:
+    """Raise `ConfigError` unless both reports evaluate the same scene and task (the scenes
+    may differ where `mirrored`: one mirrors the other)."""
+    for field in ("task",) if mirrored else ("scene", "task"):
         va, vb = getattr(a, field), getattr(b, field)
         if va != vb:
             raise ConfigError(f"reports are not comparable: {field} {va!r} (A) vs {vb!r} (B)")
@@ -48,6 +56,14 @@ def _outcomes(report: EvalReport, label: str) -> dict[int, bool]:
     if len(out) != len(report.episodes):
         raise ConfigError(f"report {label} has repeated seeds; cannot pair its episodes")
     return out
+
+
+def _steps_to_success(report: EvalReport) -> dict[int, int]:
+    return {
+        int(e.metadata["seed"]): int(e.metadata.get("first_success_step", e.steps))
+        for e in report.episodes
+        if e.success
+    }
 
 
 def _notes(a: EvalReport, b: EvalReport) -> list[str]:
@@ -73,15 +89,30 @@ def compare_reports(
     confidence: float = 0.95,
     unpaired: bool = False,
     test: str = "auto",
+    mirrored: bool = False,
 ) -> ReportComparison:
-    """B against A: paired on common seeds when there are any (unless `unpaired`)."""
+    """B against A: paired on common seeds when there are any (unless `unpaired`);
+    `mirrored`: the reports' scenes differ, one mirroring the other (`check_comparable`)."""
     check_confidence(confidence)
     if test not in UNPAIRED_TESTS:
         raise unknown("unpaired test", test, UNPAIRED_TESTS)
-    check_comparable(a, b)
+    check_comparable(a, b, mirrored)
     notes = _notes(a, b)
+    if a.scene != b.scene:
+        notes.append(
+            f"scenes {a.scene} (A) and {b.scene} (B): one mirrors the other, seed s is the same "
+            "initial state on both"
+        )
     oa, ob = _outcomes(a, "A"), _outcomes(b, "B")
     common = sorted(set(oa) & set(ob))
+    sa, sb = _steps_to_success(a), _steps_to_success(b)
+    both = [s for s in common if s in sa and s in sb]
+    timing = {
+        "both_succeeded": len(both),
+        "steps_median_difference": float(np.median([sb[s] - sa[s] for s in both]))
+        if both
+        else None,
+    }
     if common and not unpaired:
         comparison = paired_comparison(
             np.array([oa[s] for s in common]), np.array([ob[s] for s in common]), confidence
@@ -92,7 +123,7 @@ def compare_reports(
                 f"{left_a} episodes of A and {left_b} of B have no partner and are left out "
                 "(--unpaired uses them all, ignoring that shared seeds are correlated)"
             )
-        return ReportComparison(comparison, len(common), left_a, left_b, tuple(notes))
+        return ReportComparison(comparison, len(common), left_a, left_b, tuple(notes), **timing)
     if common:
         notes.append(
             f"the reports share {len(common)} seeds: the unpaired test ignores their correlation"
@@ -123,8 +154,14 @@ def format_comparison(rc: ReportComparison, a: EvalReport, b: EvalReport, names=
     if c.paired:
         lines.append(
             f"paired on {rc.common_seeds:,} common seeds: both succeed {c.both}, only A "
-            f"{c.only_a}, only B {c.only_b}, neither {c.neither}"
+            f"{c.only_a}, only B {c.only_b}, neither {c.neither}; per-seed agreement "
+            f"{100 * (c.both + c.neither) / rc.common_seeds:.1f}%"
         )
+        if rc.steps_median_difference is not None:
+            lines.append(
+                f"steps to success where both succeed ({rc.both_succeeded:,} seeds): median "
+                f"B - A = {rc.steps_median_difference:+g}"
+            )
         method, test = "Newcombe paired", "exact McNemar"
     else:
         lines.append(f"unpaired: {c.n_a:,} episodes of A, {c.n_b:,} of B")

@@ -38,7 +38,7 @@ class TaskExport:
     """One LIBERO task, built once; see the module docstring."""
 
     def __init__(self, task: str) -> None:
-        self.host = LiberoEnv(task, image_size=16)  # no images are read; keep renders small
+        self.host = LiberoEnv(task, image_size=16, expert=True)  # no images read: keep them small
         self.env = self.host.env.env  # robosuite's environment under LIBERO's wrapper
 
     def _reset(self, init: int) -> None:
@@ -143,88 +143,8 @@ class TaskExport:
         return found.pop()
 
     def goal(self) -> list[dict[str, Any]]:
-        """The task's BDDL goal (a conjunction) as data the mirror evaluates in JAX: one
-        dict per atom, with what LIBERO's predicate reads (see `openral_mjx.benchmarks.libero.
-        mirror.goal`). Joint thresholds are found by bisecting LIBERO's own methods."""
-        env = self.env
-        goal = env.parsed_problem["goal_state"]
-        return [self._atom(atom[0].lower(), atom[1:]) for atom in goal]
-
-    def _body(self, name: str) -> str:
-        m = self.env.sim.model._model
-        return m.body(int(self.env.obj_body_id[name])).name
-
-    def _contact_geoms(self, name: str) -> list[str]:
-        """The geoms robosuite's `check_contact` reads for object `name`, those that can
-        collide (a geom that cannot is never in MuJoCo's contact list)."""
-        m = self.env.sim.model._model
-        names = self.env.get_object(name).contact_geoms
-        return [
-            g for g in names if m.geom_contype[m.geom(g).id] or m.geom_conaffinity[m.geom(g).id]
-        ]
-
-    def _site(self, name: str) -> dict[str, Any]:
-        m = self.env.sim.model._model
-        site = m.site(name)
-        region = self.env.object_sites_dict[name]
-        return {
-            "site_body": m.body(int(site.bodyid[0])).name,
-            "site_pos": [float(v) for v in site.pos],
-            "site_quat": [float(v) for v in site.quat],
-            "size": [float(v) for v in region.size],
-        }
-
-    def _atom(self, predicate: str, args: list[str]) -> dict[str, Any]:
-        states = self.env.object_states_dict
-        if predicate == "on":
-            obj, target = args
-            if states[target].object_state_type != "site":
-                return {
-                    "kind": "on_object",
-                    "obj": self._body(obj),
-                    "target": self._body(target),
-                    "contact": [self._contact_geoms(target), self._contact_geoms(obj)],
-                }
-            region = self.env.object_sites_dict[target]
-            if not hasattr(region, "under"):
-                return {"kind": "true"}
-            parent = states[target].parent_name
-            has_parent = self.env.get_object(parent) is not None
-            return {
-                "kind": "on_site",
-                "obj": self._body(obj),
-                **self._site(target),
-                "contact": [self._contact_geoms(parent), self._contact_geoms(obj)]
-                if has_parent
-                else [],
-            }
-        if predicate == "in":
-            obj, target = args
-            if states[target].object_state_type != "site":
-                raise ValueError(f"In({obj}, {target}): only regions (sites) hold objects")
-            return {"kind": "in_site", "obj": self._body(obj), **self._site(target)}
-        if predicate in ("open", "close", "turnon", "turnoff"):
-            (name,) = args
-            state = states[name]
-            if state.object_state_type == "site":
-                joints = self.env.object_sites_dict[name].joints
-                owner = self.env.get_object(state.parent_name)
-            else:
-                joints = self.env.get_object(name).joints
-                owner = self.env.get_object(name)
-            method = getattr(owner, _METHODS[predicate])
-            m = self.env.sim.model._model
-            limits = [m.joint(j).range for j in joints]
-            thresholds = [_threshold(method, lo, hi) for lo, hi in limits]
-            return {
-                "kind": "joints",
-                "joints": list(joints),
-                "threshold": [t for t, _, _ in thresholds],
-                "above": [a for _, a, _ in thresholds],
-                "inclusive": [i for _, _, i in thresholds],
-                "all": predicate in ("close", "turnoff"),  # LIBERO: every joint; else any
-            }
-        raise ValueError(f"LIBERO predicate {predicate!r} is not mirrored")
+        """The task's BDDL goal as data the mirror evaluates in JAX (`goal_atoms`)."""
+        return goal_atoms(self.env)
 
     def check_success(self, states: np.ndarray) -> np.ndarray:
         """LIBERO's goal (`_check_success`) at each flattened ``[time, qpos, qvel]`` state,
@@ -239,16 +159,19 @@ class TaskExport:
 
     def rollout(self, init: int, actions: np.ndarray) -> dict[str, np.ndarray]:
         """Reset to initial state `init` (and LIBERO's settle steps), then play `actions`
-        ((T, 7)); per step 0..T: qpos, qvel, the lerobot state, the success predicate."""
+        ((T, 7)); per step 0..T: qpos, qvel, the lerobot state, the ``expert`` entry, the
+        success predicate."""
         self._reset(init)
         sim = self.env.sim
-        qpos, qvel, state, success = [], [], [], []
+        qpos, qvel, state, expert, success = [], [], [], [], []
 
         def record(done: bool) -> None:
             qpos.append(np.array(sim.data.qpos))
             qvel.append(np.array(sim.data.qvel))
             raw = self.env._get_observations()
-            state.append(self.host._obs(raw)["state"])
+            obs = self.host._obs(raw)
+            state.append(obs["state"])
+            expert.append(obs["expert"])
             success.append(done)
 
         record(False)
@@ -259,8 +182,104 @@ class TaskExport:
             "qpos": np.stack(qpos),
             "qvel": np.stack(qvel),
             "state": np.stack(state),
+            "expert": np.stack(expert),
             "success": np.array(success),
         }
+
+
+def goal_atoms(env: Any) -> list[dict[str, Any]]:
+    """LIBERO env `env`'s BDDL goal (a conjunction) as data the mirror evaluates in JAX: one
+    dict per atom, with what LIBERO's predicate reads (see `openral_mjx.benchmarks.libero.
+    mirror.goal`). Joint thresholds are found by bisecting LIBERO's own methods."""
+    goal = env.parsed_problem["goal_state"]
+    return [_atom(env, atom[0].lower(), atom[1:]) for atom in goal]
+
+
+def expert_frames(atoms: list[dict[str, Any]]) -> tuple[str, str] | None:
+    """The bodies `libero-expert` watches: the object its first pick-and-place atom moves and
+    the body that atom's target is (or is fixed to); None where the goal has no such atom."""
+    for atom in atoms:
+        if atom["kind"] in ("on_object", "on_site", "in_site"):
+            return atom["obj"], atom.get("target") or atom["site_body"]
+    return None
+
+
+def _body(env: Any, name: str) -> str:
+    m = env.sim.model._model
+    return m.body(int(env.obj_body_id[name])).name
+
+
+def _contact_geoms(env: Any, name: str) -> list[str]:
+    """The geoms robosuite's `check_contact` reads for object `name`, those that can
+    collide (a geom that cannot is never in MuJoCo's contact list)."""
+    m = env.sim.model._model
+    names = env.get_object(name).contact_geoms
+    return [g for g in names if m.geom_contype[m.geom(g).id] or m.geom_conaffinity[m.geom(g).id]]
+
+
+def _site(env: Any, name: str) -> dict[str, Any]:
+    m = env.sim.model._model
+    site = m.site(name)
+    region = env.object_sites_dict[name]
+    return {
+        "site_body": m.body(int(site.bodyid[0])).name,
+        "site_pos": [float(v) for v in site.pos],
+        "site_quat": [float(v) for v in site.quat],
+        "size": [float(v) for v in region.size],
+    }
+
+
+def _atom(env: Any, predicate: str, args: list[str]) -> dict[str, Any]:
+    states = env.object_states_dict
+    if predicate == "on":
+        obj, target = args
+        if states[target].object_state_type != "site":
+            return {
+                "kind": "on_object",
+                "obj": _body(env, obj),
+                "target": _body(env, target),
+                "contact": [_contact_geoms(env, target), _contact_geoms(env, obj)],
+            }
+        region = env.object_sites_dict[target]
+        if not hasattr(region, "under"):
+            return {"kind": "true"}
+        parent = states[target].parent_name
+        has_parent = env.get_object(parent) is not None
+        return {
+            "kind": "on_site",
+            "obj": _body(env, obj),
+            **_site(env, target),
+            "contact": [_contact_geoms(env, parent), _contact_geoms(env, obj)]
+            if has_parent
+            else [],
+        }
+    if predicate == "in":
+        obj, target = args
+        if states[target].object_state_type != "site":
+            raise ValueError(f"In({obj}, {target}): only regions (sites) hold objects")
+        return {"kind": "in_site", "obj": _body(env, obj), **_site(env, target)}
+    if predicate in ("open", "close", "turnon", "turnoff"):
+        (name,) = args
+        state = states[name]
+        if state.object_state_type == "site":
+            joints = env.object_sites_dict[name].joints
+            owner = env.get_object(state.parent_name)
+        else:
+            joints = env.get_object(name).joints
+            owner = env.get_object(name)
+        method = getattr(owner, _METHODS[predicate])
+        m = env.sim.model._model
+        limits = [m.joint(j).range for j in joints]
+        thresholds = [_threshold(method, lo, hi) for lo, hi in limits]
+        return {
+            "kind": "joints",
+            "joints": list(joints),
+            "threshold": [t for t, _, _ in thresholds],
+            "above": [a for _, a, _ in thresholds],
+            "inclusive": [i for _, _, i in thresholds],
+            "all": predicate in ("close", "turnoff"),  # LIBERO: every joint; else any
+        }
+    raise ValueError(f"LIBERO predicate {predicate!r} is not mirrored")
 
 
 def _threshold(method: Any, lo: float, hi: float) -> tuple[float, bool, bool]:

@@ -32,6 +32,8 @@ SUITES = {
     "libero_90": (90, 400),
 }
 INIT_STATES = 50  # shipped initial states per task
+# the ``expert`` entry: the moved object's position, its target body's position and quaternion
+EXPERT_SIZE = 10
 
 
 def parse_task(task: str) -> tuple[str, int]:
@@ -62,12 +64,14 @@ def instruction(task: str) -> str:
 @dataclasses.dataclass(frozen=True)
 class LiberoOptions(HostOptions):
     """`libero` options: the task, the camera resolution, the episode limit (default: the
-    suite's), and the offscreen GL platform (`egl`, or `osmesa` where EGL is missing)."""
+    suite's), the offscreen GL platform (`egl`, or `osmesa` where EGL is missing), and whether
+    the observation has the ``expert`` entry that `libero-expert` reads."""
 
     task: str = "libero_spatial/0"
     image_size: int = 128
     max_steps: int | None = None
     gl: str = "egl"
+    expert: bool = True
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -87,12 +91,14 @@ def libero(options: LiberoOptions, **_: object) -> HostScene:
         "wrist_image": ((size, size, 3), "uint8"),
         "state": ((8,), "float32"),
     }
+    if o.expert:
+        observation["expert"] = ((EXPERT_SIZE,), "float32")
     return panda_osc_scene(
         "libero",
         o.task,
         o,
         "openral_mjx.benchmarks.libero.worker_env:LiberoEnv",
-        {"task": o.task, "image_size": size},
+        {"task": o.task, "image_size": size, "expert": o.expert},
         observation,
         o.max_steps or SUITES[suite][1],
         o.gl,
@@ -111,4 +117,5 @@ SCENE = SceneEntry(
     worker_env=ENV,  # LIBERO runs robosuite's Panda scenes
     tasks="SUITE/INDEX (INDEX from 0), e.g. libero_spatial/0",
     suite_names=tuple(SUITES),
+    expert="libero-expert",
 )

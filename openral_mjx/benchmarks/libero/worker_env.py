@@ -7,7 +7,11 @@ Observation (lerobot's LIBERO convention): ``image`` (agent view) and ``wrist_im
 (eye in hand), RGB uint8 turned upright (MuJoCo renders them upside down), and ``state`` =
 end-effector position (3), axis-angle (3) and gripper finger positions (2), float32. Action:
 7-D OSC pose delta and gripper command in [-1, 1]. Success: LIBERO's own goal predicates
-(`check_success`); the episode ends there.
+(`check_success`); the episode ends there. With ``expert`` on, the observation also has
+``expert``: the world position of the object the goal's first pick-and-place atom moves, and
+the position and orientation (w, x, y, z) of its target's body (`export.expert_frames`), as
+the last physics step leaves them in MuJoCo's data (10 floats; zeros where the goal has no
+such atom): what `libero-expert` reads.
 
 LIBERO asks interactively where to keep its files on first import unless its config exists;
 this module writes that config (LIBERO's default paths) first, and points LIBERO's assets at
@@ -61,7 +65,7 @@ def configure() -> Path:
 class LiberoEnv:
     """One LIBERO task (see module docstring). `task` is ``suite/index``."""
 
-    def __init__(self, task: str, image_size: int = 128) -> None:
+    def __init__(self, task: str, image_size: int = 128, expert: bool = False) -> None:
         suite_name, _, index = task.partition("/")
         assets = configure()
         import libero.libero as libero_pkg
@@ -76,6 +80,22 @@ class LiberoEnv:
         self.env = OffScreenRenderEnv(
             bddl_file_name=str(bddl), camera_heights=image_size, camera_widths=image_size
         )
+        self._expert_bodies: list[int] | None = None
+        if expert:
+            from openral_mjx.benchmarks.libero.export import expert_frames, goal_atoms
+
+            inner = self.env.env
+            inner.reset()  # LIBERO parses the goal and places its objects at reset
+            frames = expert_frames(goal_atoms(inner)) or ()
+            self._expert_bodies = [inner.sim.model._model.body(n).id for n in frames]
+
+    def _expert(self) -> np.ndarray:
+        d = self.env.env.sim.data._data
+        ids = self._expert_bodies or []
+        if not ids:
+            return np.zeros(10, np.float32)
+        obj, target = ids
+        return np.concatenate([d.xpos[obj], d.xpos[target], d.xquat[target]]).astype(np.float32)
 
     def _obs(self, raw: dict[str, Any]) -> dict[str, np.ndarray]:
         state = np.concatenate(
@@ -85,11 +105,14 @@ class LiberoEnv:
                 raw["robot0_gripper_qpos"].astype(np.float32),
             ]
         )
-        return {
+        obs = {
             "image": np.ascontiguousarray(raw["agentview_image"][::-1, ::-1]),
             "wrist_image": np.ascontiguousarray(raw["robot0_eye_in_hand_image"][::-1, ::-1]),
             "state": state,
         }
+        if self._expert_bodies is not None:
+            obs["expert"] = self._expert()
+        return obs
 
     def reset(self, seed: int | None = None, options: dict | None = None) -> tuple[dict, dict]:
         options = options or {}

@@ -70,8 +70,8 @@ def test_same_initial_state_and_actions_give_libero_s_observations(
     scene: LiberoMjx, libero
 ) -> None:
     """Seed s's reset (initial state s mod 50 and the settle) and then the same random
-    actions: lerobot's state and every joint (robot, objects, drawers) as LIBERO gives them,
-    step by step."""
+    actions: lerobot's state, the expert's entry and every joint (robot, objects, drawers)
+    as LIBERO gives them, step by step."""
     actions = np.random.default_rng(1).uniform(-1.0, 1.0, (20, 7)).astype(np.float32)
     reset, step = jax.jit(scene.reset_with_seed), jax.jit(scene.step)
     for seed in (0, 57):  # 57: initial state 7
@@ -82,7 +82,9 @@ def test_same_initial_state_and_actions_give_libero_s_observations(
             state = step(state, jnp.asarray(a))
             states.append(np.asarray(state.obs))
             qpos.append(np.asarray(state.physics.quantities.qpos))
-        np.testing.assert_allclose(np.stack(states), ref["state"], atol=1e-5)
+        states = np.stack(states)
+        np.testing.assert_allclose(states[:, :8], ref["state"], atol=1e-5)
+        np.testing.assert_allclose(states[:, 8:], ref["expert"], atol=1e-5)
         np.testing.assert_allclose(np.stack(qpos), ref["qpos"], atol=1e-5)
         assert not np.asarray(state.metrics["diverged"])
 

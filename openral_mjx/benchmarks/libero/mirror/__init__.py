@@ -6,18 +6,26 @@ from openral_mjx.benchmarks.libero.mirror.options import LiberoMjxOptions
 from openral_mjx.benchmarks.libero.mirror.scene import LiberoMjx
 from openral_mjx.scenes import SceneEntry
 
+# `warp` contacts per env: LIBERO's scenes hold 18-87 after their settle steps (at most 93
+# and 62 broadphase pairs over libero-expert's episodes of libero_spatial/0 and
+# libero_object/0, measured); an env that overflows its buffer is counted diverged, never
+# silently wrong
+CONTACTS_PER_ENV = 128
+
 # `SCENES`'s entry for `libero_mjx`, with the host scene's robot, tasks and suites. Its model
-# and facts come from LIBERO in the `lerobot-libero` worker environment (`assets`). On `c`
-# for now: the goal's contact tests read contact sensors, which `mjx` and `warp` lack here.
+# and facts come from LIBERO in the `lerobot-libero` worker environment (`assets`).
 SCENE = SceneEntry(
     LiberoMjxOptions,
     LiberoMjx,
     host_scene.ROBOT,
-    backends=("c",),
+    backends=("c", "mjx", "warp"),
     suites=host_scene.suite_tasks,
     worker_env=ENV,
     tasks=host_scene.SCENE.tasks,
     suite_names=host_scene.SCENE.suite_names,
+    expert="libero-expert",
+    mirrors="libero",
+    contacts_per_env=CONTACTS_PER_ENV,
 )
 
 __all__ = ["SCENE", "LiberoMjx", "LiberoMjxOptions"]

@@ -20,6 +20,7 @@ import dataclasses
 import functools
 import json
 import os
+import shutil
 import tempfile
 from collections.abc import Iterator
 from pathlib import Path
@@ -131,6 +132,23 @@ def load_task(task: str) -> TaskModel:
     return _read(task) or _export(task)
 
 
+def bundled(path: str) -> str:
+    """`path` (a file in the worker environment's packages) as kept in the export cache's
+    ``files/`` folder, copied there on first use: a cache carried to another machine (a GPU
+    host without the worker environment) holds every file the physics model reads."""
+    parts = Path(os.path.normpath(path)).parts
+    rel = parts[parts.index("site-packages") + 1 :] if "site-packages" in parts else parts[-1:]
+    kept = models_root() / "files" / Path(*rel)
+    if not kept.exists():
+        if not Path(path).exists():
+            raise ConfigError(f"LIBERO asset {path!r} is missing and not in {kept.parent}")
+        kept.parent.mkdir(parents=True, exist_ok=True)
+        tmp = kept.with_name(f".{kept.name}.{os.getpid()}")
+        shutil.copyfile(path, tmp)
+        os.replace(tmp, kept)
+    return str(kept)
+
+
 def physics_spec(model: TaskModel) -> mujoco.MjSpec:
     """The mirror's model of the task: collision geoms only, exported inertials pinned."""
     spec = mujoco.MjSpec.from_string(model.xml)
@@ -149,6 +167,9 @@ def physics_spec(model: TaskModel) -> mujoco.MjSpec:
     for texture in list(spec.textures):
         if texture.name not in used_textures:
             spec.delete(texture)
+    for asset in [*spec.meshes, *spec.textures]:
+        if asset.file:
+            asset.file = bundled(asset.file)
     names = [str(n) for n in model.meta["body_names"]]
     a = model.arrays
     for i, name in enumerate(names[1:], start=1):  # the world body has no inertial

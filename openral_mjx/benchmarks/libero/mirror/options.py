@@ -10,11 +10,13 @@ from openral_mjx.core.options import check
 
 @dataclasses.dataclass(frozen=True)
 class LiberoMjxOptions:
-    """The LIBERO task (``suite/index``, as on the `libero` host scene) and the episode limit
-    (default: the suite's, as lerobot's LIBERO evaluation sets it)."""
+    """The LIBERO task (``suite/index``, as on the `libero` host scene), the episode limit
+    (default: the suite's, as lerobot's LIBERO evaluation sets it), and whether the
+    observation has the ``expert`` entry that `libero-expert` reads (as on the host scene)."""
 
     task: str = "libero_spatial/0"
     max_steps: int | None = None
+    expert: bool = True
 
     def __post_init__(self) -> None:
         parse_task(self.task)

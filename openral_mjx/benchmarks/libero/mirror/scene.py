@@ -14,6 +14,9 @@ reproduces of LIBERO's `OffScreenRenderEnv` (robosuite 1.4):
   float timer that comes round at the 24th of the 25 physics steps (the export measures
   which), reading the data that step leaves: the end-effector pose computed before its
   integration, the fingers' positions after it.
+- **Expert entry** (option ``expert``, on by default): the moved object's position and its
+  target body's pose (`export.expert_frames`), from the data the control step's last physics
+  step leaves, as the host scene's workers read them; what `libero-expert` plays from.
 - **Success**: the task's BDDL goal, as LIBERO's predicates evaluate it (`goal`); it ends
   the episode, as on the host scene.
 """
@@ -26,6 +29,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from openral_mjx.benchmarks.libero.export import expert_frames
+from openral_mjx.benchmarks.libero.host_scene import EXPERT_SIZE
 from openral_mjx.benchmarks.libero.host_scene import instruction as host_instruction
 from openral_mjx.benchmarks.libero.mirror.assets import TaskModel, load_task, physics_spec
 from openral_mjx.benchmarks.libero.mirror.controller import (
@@ -42,6 +47,7 @@ from openral_mjx.benchmarks.libero.mirror.options import LiberoMjxOptions
 from openral_mjx.physics import (
     PhysicsSettings,
     PhysicsState,
+    Quantities,
     QuantitySpec,
     make_backend,
     resolve_backend_name,
@@ -49,7 +55,7 @@ from openral_mjx.physics import (
 from openral_mjx.scenes.base import Scene, State, obs_slices
 from openral_mjx.scenes.composition import for_mjx_jax
 
-OBS_SIZES = {"state": 8}
+STATE_SIZE = 8
 # MJX contact slots kept per condim on `mjx` (`for_mjx_jax`): LIBERO's scenes hold 18-87
 # active contacts after their settle steps (libero_10/0, libero_spatial/0).
 MJX_CONTACTS_PER_CONDIM = 128
@@ -147,7 +153,12 @@ class LiberoMjx(Scene):
             f32("stale_qd"),
         )
         self._stale_first = bool(meta["stale_pending"])
-        self._layout = obs_slices(OBS_SIZES)
+        frames = expert_frames(t.goal)
+        bodies = self.backend.quantity_spec.bodies
+        self._expert = None if frames is None else [bodies.index(b) for b in frames]
+        sizes = {"state": STATE_SIZE, **({"expert": EXPERT_SIZE} if o.expert else {})}
+        self._layout = obs_slices(sizes)
+        self._obs_size = sum(sizes.values())
 
     # ---- layout ---------------------------------------------------------------------------
 
@@ -196,7 +207,7 @@ class LiberoMjx(Scene):
             0,
             n,
             lambda i, pco: self._control(*pco[:2], action, stale=(i == 0) & self._stale_first),
-            (physics, controller, jnp.zeros(OBS_SIZES["state"], jnp.float32)),
+            (physics, controller, jnp.zeros(self._obs_size, jnp.float32)),
         )
         diverged = ~physics.quantities.ok
         return State(
@@ -259,8 +270,13 @@ class LiberoMjx(Scene):
             obs = jnp.where(i + 1 == self.observed_substep, self._obs(p), obs)
             return p, c, obs
 
-        obs = jnp.zeros(OBS_SIZES["state"], jnp.float32)
-        return jax.lax.fori_loop(0, self.n_substeps, substep, (physics, controller, obs))
+        obs = jnp.zeros(STATE_SIZE, jnp.float32)
+        physics, controller, obs = jax.lax.fori_loop(
+            0, self.n_substeps, substep, (physics, controller, obs)
+        )
+        if self.options.expert:
+            obs = jnp.concatenate([obs, self._expert_entry(physics.quantities)])
+        return physics, controller, obs
 
     def step(self, state: State, action: jax.Array) -> State:
         action = action.astype(jnp.float32)
@@ -277,6 +293,13 @@ class LiberoMjx(Scene):
         )
 
     # ---- observation ----------------------------------------------------------------------
+
+    def _expert_entry(self, q: Quantities) -> jax.Array:
+        """The moved object's position, its target body's position and orientation."""
+        if self._expert is None:
+            return jnp.zeros(EXPERT_SIZE, jnp.float32)
+        obj, target = self._expert
+        return jnp.concatenate([q.body_pos[obj], q.body_pos[target], q.body_quat[target]])
 
     def _obs(self, physics: PhysicsState) -> jax.Array:
         q = physics.quantities

@@ -1,0 +1,74 @@
+"""`libero-expert`: its episode on the mirror, replayed action for action on LIBERO itself.
+
+The expert plays seed 0 of `libero_object/0` (the alphabet soup into the basket) closed loop
+on `libero_mjx` (`c`); LIBERO (robosuite 1.4, mujoco 3.8.1, in its worker environment) then
+plays the same actions from the same initial state. Both must succeed at the same control
+step, with the same observations (lerobot's state and the expert's entry) along the way.
+
+Tolerance: the two engines (mujoco 4.0.0 float32 readouts here, 3.8.1 float64 there) agree
+to a few 1e-7 with the arm in free space; grasping, carrying and dropping an object through
+frictional contact lets rounding grow: measured 8e-5 m for the hand and 6e-4 m for the
+object as it drops into the basket, so positions must agree to 2 mm. A fault in the grasp or the release (a wrong
+gripper timing, contact parameter or controller state) moves the object by centimetres.
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from worker_envs import require_worker_envs
+
+from openral_mjx.benchmarks.libero.agreement import libero_reference
+from openral_mjx.benchmarks.libero.expert import coverage, plan_for
+from openral_mjx.benchmarks.libero.mirror import LiberoMjx, LiberoMjxOptions
+from openral_mjx.benchmarks.libero.mirror.assets import ENV
+from openral_mjx.core.errors import ConfigError
+from openral_mjx.policies import make_policy
+
+require_worker_envs(ENV)
+pytestmark = pytest.mark.worker
+
+TASK = "libero_object/0"
+SEED = 0
+
+
+def expert_episode(scene: LiberoMjx) -> tuple[np.ndarray, np.ndarray, int]:
+    """(actions (T, 7), observations (T + 1, 18), the step success came at) of seed SEED."""
+    policy = make_policy("libero-expert", scene)
+    _, pstate = policy.init(jax.random.PRNGKey(0), None)
+    reset, step = jax.jit(scene.reset_with_seed), jax.jit(scene.step)
+    act = jax.jit(policy.act)
+    state = reset(jnp.int32(SEED), jax.random.PRNGKey(SEED))
+    actions, obs = [], [np.asarray(state.obs)]
+    for t in range(scene.max_steps):
+        action, pstate = act(None, pstate, state.obs, jax.random.PRNGKey(t))
+        state = step(state, action)
+        actions.append(np.asarray(action))
+        obs.append(np.asarray(state.obs))
+        if bool(state.done):
+            assert bool(state.metrics["success"]), "the expert's episode diverged"
+            return np.stack(actions), np.stack(obs), t + 1
+    raise AssertionError(f"the expert did not succeed on seed {SEED} in {scene.max_steps} steps")
+
+
+def test_expert_episode_replays_on_libero() -> None:
+    scene = LiberoMjx(LiberoMjxOptions(task=TASK), backend="c")
+    actions, obs, success_step = expert_episode(scene)
+    with libero_reference(TASK) as libero:
+        ref = libero.rollout(SEED % 50, actions)
+    assert int(np.argmax(ref["success"])) == success_step and ref["success"][-1]
+    worst = float(np.abs(obs[:, :3] - ref["state"][:, :3]).max())
+    worst_obj = float(np.abs(obs[:, 8:11] - ref["expert"][:, :3]).max())
+    assert worst < 2e-3 and worst_obj < 2e-3, (worst, worst_obj)
+
+
+def test_coverage_names_what_the_expert_plays() -> None:
+    assert coverage("libero_object/0") == "covered"  # In(soup, basket)
+    assert coverage("libero_10/3") == "first atom of several"  # bowl in drawer, drawer shut
+    assert coverage("libero_goal/0") == "not covered"  # open a drawer
+    assert plan_for("libero_goal/0") is None
+    scene = LiberoMjx(LiberoMjxOptions(task="libero_goal/0"), backend="c")
+    with pytest.raises(ConfigError, match="no On or In atom"):
+        make_policy("libero-expert", scene)

@@ -50,6 +50,7 @@ ROLES = {
     "expert": "policies",
     "worker_env": "host",
     "export": "host",  # runs in the worker environment too: what a mirror reads of the original
+    "assets": "host",  # the export's cache: models and files a mirror and an expert read
 }
 
 

@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-from openral_mjx.benchmarks.libero.mirror.assets import TIMEOUT_S, task_worker
+from openral_mjx.benchmarks.libero.assets import TIMEOUT_S, task_worker
 from openral_mjx.host.pool import Worker
 
 

@@ -9,7 +9,7 @@ on the mirror for as long as their states agree: the closed-loop oracle of the m
 agreement table.
 
 What it knows of a task beyond the observation is fixed per task and computed here from the
-task's model (the mirror's export, `mirror.assets.load_task`) at LIBERO's initial state 0:
+task's model (the mirror's export, `assets.load_task`) at LIBERO's initial state 0:
 
 - where to grasp, relative to the object's origin: the middle of the object's colliding
   geoms where they fit between the fingers (7 cm), else a point of the rim on the fingers'
@@ -38,8 +38,8 @@ import jax.numpy as jnp
 import mujoco
 import numpy as np
 
-from openral_mjx.benchmarks.libero.export import expert_frames
-from openral_mjx.benchmarks.libero.host_scene import EXPERT_SIZE, parse_task
+from openral_mjx.benchmarks.libero.assets import load_task, physics_spec
+from openral_mjx.benchmarks.libero.export import EXPERT_SIZE, expert_frames
 from openral_mjx.core.errors import ConfigError
 from openral_mjx.core.rotations import quat_to_mat
 from openral_mjx.policies.base import Policy
@@ -99,9 +99,6 @@ def closing_axis(m: mujoco.MjModel, d: mujoco.MjData, finger_joint: str) -> np.n
 @functools.cache
 def plan_for(task: str) -> Plan | None:
     """Task ``suite/index``'s plan, or None where its goal has no pick-and-place atom."""
-    from openral_mjx.benchmarks.libero.mirror.assets import load_task, physics_spec
-
-    parse_task(task)
     export = load_task(task)
     frames = expert_frames(export.goal)
     if frames is None:

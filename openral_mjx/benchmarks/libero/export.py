@@ -30,6 +30,9 @@ import numpy as np
 
 from openral_mjx.benchmarks.libero.worker_env import DUMMY_ACTION, SETTLE_STEPS, LiberoEnv
 
+# the ``expert`` observation entry: the moved object's position, its target body's position
+# and quaternion (`expert_frames`)
+EXPERT_SIZE = 10
 # LIBERO's articulated objects' method for each joint predicate
 _METHODS = {"open": "is_open", "close": "is_close", "turnon": "turn_on", "turnoff": "turn_off"}
 

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import dataclasses
 
+from openral_mjx.benchmarks.libero.export import EXPERT_SIZE
 from openral_mjx.benchmarks.libero.instructions import INSTRUCTIONS
 from openral_mjx.benchmarks.robosuite.host_scene import ENV, ROBOT, panda_osc_scene
 from openral_mjx.core.errors import ConfigError, unknown
@@ -32,8 +33,6 @@ SUITES = {
     "libero_90": (90, 400),
 }
 INIT_STATES = 50  # shipped initial states per task
-# the ``expert`` entry: the moved object's position, its target body's position and quaternion
-EXPERT_SIZE = 10
 
 
 def parse_task(task: str) -> tuple[str, int]:

@@ -8,8 +8,9 @@ step, with the same observations (lerobot's state and the expert's entry) along 
 Tolerance: the two engines (mujoco 4.0.0 float32 readouts here, 3.8.1 float64 there) agree
 to a few 1e-7 with the arm in free space; grasping, carrying and dropping an object through
 frictional contact lets rounding grow: measured 8e-5 m for the hand and 6e-4 m for the
-object as it drops into the basket, so positions must agree to 2 mm. A fault in the grasp or the release (a wrong
-gripper timing, contact parameter or controller state) moves the object by centimetres.
+object as it drops into the basket, so positions must agree to 2 mm. A fault in the grasp or
+the release (a wrong gripper timing, contact parameter or controller state) moves the object
+by centimetres.
 """
 
 from __future__ import annotations
@@ -21,9 +22,9 @@ import pytest
 from worker_envs import require_worker_envs
 
 from openral_mjx.benchmarks.libero.agreement import libero_reference
+from openral_mjx.benchmarks.libero.assets import ENV
 from openral_mjx.benchmarks.libero.expert import coverage, plan_for
 from openral_mjx.benchmarks.libero.mirror import LiberoMjx, LiberoMjxOptions
-from openral_mjx.benchmarks.libero.mirror.assets import ENV
 from openral_mjx.core.errors import ConfigError
 from openral_mjx.policies import make_policy
 

@@ -19,8 +19,8 @@ import pytest
 from worker_envs import require_worker_envs
 
 from openral_mjx.benchmarks.libero.agreement import libero_reference
+from openral_mjx.benchmarks.libero.assets import ENV, load_task, physics_spec
 from openral_mjx.benchmarks.libero.mirror import LiberoMjx, LiberoMjxOptions
-from openral_mjx.benchmarks.libero.mirror.assets import ENV, load_task, physics_spec
 from openral_mjx.benchmarks.libero.mirror.controller import RobotDynamics
 
 require_worker_envs(ENV)

@@ -29,10 +29,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from openral_mjx.benchmarks.libero.export import expert_frames
-from openral_mjx.benchmarks.libero.host_scene import EXPERT_SIZE
+from openral_mjx.benchmarks.libero.assets import TaskModel, load_task, physics_spec
+from openral_mjx.benchmarks.libero.export import EXPERT_SIZE, expert_frames
 from openral_mjx.benchmarks.libero.host_scene import instruction as host_instruction
-from openral_mjx.benchmarks.libero.mirror.assets import TaskModel, load_task, physics_spec
 from openral_mjx.benchmarks.libero.mirror.controller import (
     ControllerState,
     Dynamics,

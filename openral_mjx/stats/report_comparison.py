@@ -158,8 +158,9 @@ def format_comparison(rc: ReportComparison, a: EvalReport, b: EvalReport, names=
             f"{100 * (c.both + c.neither) / rc.common_seeds:.1f}%"
         )
         if rc.steps_median_difference is not None:
+            seeds = "seed" if rc.both_succeeded == 1 else "seeds"
             lines.append(
-                f"steps to success where both succeed ({rc.both_succeeded:,} seeds): median "
+                f"steps to success where both succeed ({rc.both_succeeded:,} {seeds}): median "
                 f"B - A = {rc.steps_median_difference:+g}"
             )
         method, test = "Newcombe paired", "exact McNemar"

@@ -1,16 +1,34 @@
-"""The LIBERO mirror against LIBERO itself: LIBERO's env for a task in a worker process, to
-replay actions from an initial state and to judge states by its own goal predicates."""
+"""The LIBERO mirror against LIBERO itself.
+
+- `libero_reference`: LIBERO's env for a task in a worker process, to replay actions from an
+  initial state and to judge states by its own goal predicates (the tests' oracle).
+- `agreement_table`: `libero-expert` closed loop on the same seeds of each task, on the mirror
+  (`libero_mjx`, any backend) and on LIBERO through the host adapter, as a user would run
+  them, compared seed by seed (`compare_reports`): both rates with their intervals, per-seed
+  agreement, exact McNemar, and the median difference in steps to success.
+
+``python -m openral_mjx.benchmarks.libero.agreement --tasks libero_object/0 --seeds 200``
+prints the table (markdown) and writes it as JSON with ``--out``.
+"""
 
 from __future__ import annotations
 
+import argparse
 import contextlib
-from collections.abc import Iterator
+import json
+from collections.abc import Iterator, Sequence
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from openral_mjx.benchmarks.libero.assets import TIMEOUT_S, task_worker
+from openral_mjx.benchmarks.libero.expert import coverage
+from openral_mjx.core.files import write_text_atomic
+from openral_mjx.evaluation import evaluate
 from openral_mjx.host.pool import Worker
+from openral_mjx.report import EvalReport
+from openral_mjx.stats import compare_reports
 
 
 class LiberoReference:
@@ -37,3 +55,87 @@ def libero_reference(task: str) -> Iterator[LiberoReference]:
     """LIBERO's env for `task` (``suite/index``) in a worker, closed on exit."""
     with task_worker(task) as (worker, _):
         yield LiberoReference(worker)
+
+
+def agreement_row(
+    task: str, seeds: int, backend: str = "c", host_envs: int = 8
+) -> tuple[dict[str, Any], EvalReport, EvalReport]:
+    """`libero-expert` on seeds 0..seeds-1 of `task` on the mirror and on LIBERO: the table's
+    row, and the two reports (LIBERO's first)."""
+    mirror = evaluate(
+        "libero_mjx",
+        "libero-expert",
+        n_envs=seeds,
+        backend=backend,
+        options={"task": task},
+    )
+    host = evaluate(
+        "libero",
+        "libero-expert",
+        n_envs=min(host_envs, seeds),
+        n_episodes=seeds,
+        options={"task": task, "image_size": 8},  # no policy here reads the cameras
+    )
+    rc = compare_reports(host, mirror, mirrored=True)
+    c = rc.comparison
+    row = {
+        "task": task,
+        "coverage": coverage(task),
+        "backend": backend,
+        "seeds": rc.common_seeds,
+        "libero_rate": host.success_rate,
+        "libero_ci": [host.ci_low, host.ci_high],
+        "mirror_rate": mirror.success_rate,
+        "mirror_ci": [mirror.ci_low, mirror.ci_high],
+        "agreement": (c.both + c.neither) / rc.common_seeds,
+        "only_libero": c.only_a,
+        "only_mirror": c.only_b,
+        "mcnemar_p": c.p_value,
+        "both_succeeded": rc.both_succeeded,
+        "steps_median_difference": rc.steps_median_difference,
+        "mirror_diverged": mirror.diverged,
+    }
+    return row, host, mirror
+
+
+def format_table(rows: Sequence[dict[str, Any]]) -> str:
+    """The agreement table in markdown."""
+    lines = [
+        "| task | seeds | LIBERO | mirror | per-seed agreement | McNemar p | "
+        "steps to success, mirror - LIBERO (median) |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    pct = lambda r, ci: f"{100 * r:.1f}% [{100 * ci[0]:.1f}, {100 * ci[1]:.1f}]"  # noqa: E731
+    for r in rows:
+        steps = r["steps_median_difference"]
+        lines.append(
+            f"| `{r['task']}` | {r['seeds']} | {pct(r['libero_rate'], r['libero_ci'])} | "
+            f"{pct(r['mirror_rate'], r['mirror_ci'])} | {100 * r['agreement']:.1f}% | "
+            f"{r['mcnemar_p']:.2g} | {'-' if steps is None else f'{steps:+g}'} |"
+        )
+    return "\n".join(lines)
+
+
+def main(argv: Sequence[str] | None = None) -> None:
+    ap = argparse.ArgumentParser(
+        prog="python -m openral_mjx.benchmarks.libero.agreement",
+        description="libero-expert closed loop on the mirror and on LIBERO, seed by seed.",
+    )
+    ap.add_argument("--tasks", nargs="+", required=True, help="SUITE/INDEX ...")
+    ap.add_argument("--seeds", type=int, default=200)
+    ap.add_argument("--backend", default="c", help="the mirror's backend")
+    ap.add_argument("--host-envs", type=int, default=8, help="LIBERO worker processes")
+    ap.add_argument("--out", type=Path, default=None, help="JSON file for the rows")
+    a = ap.parse_args(argv)
+    rows = []
+    for task in a.tasks:
+        row, _, _ = agreement_row(task, a.seeds, a.backend, a.host_envs)
+        rows.append(row)
+        print(format_table([row]).splitlines()[-1], flush=True)
+        if a.out is not None:
+            write_text_atomic(a.out, json.dumps(rows, indent=1))
+    print(format_table(rows))
+
+
+if __name__ == "__main__":
+    main()

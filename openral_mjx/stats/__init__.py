@@ -1,6 +1,7 @@
 """Success-rate statistics: binomial intervals (`intervals`), comparisons of two policies
 (`comparison`, and `report_comparison` for two reports), the exact group-sequential design
-(`sequential`) and the success breakdown by episode factor (`breakdown`).
+(`sequential`), sample sizes planned before a run (`planning`) and the success breakdown by
+episode factor (`breakdown`).
 
 A new statistic goes in the module of its kind, with an exact or simulated oracle in
 `tests/stats/test_stats.py`; what users call is re-exported here.
@@ -27,6 +28,17 @@ from openral_mjx.stats.intervals import (
     wilson_interval,
     z_value,
 )
+from openral_mjx.stats.planning import (
+    PLAN_CAP,
+    PairedDesign,
+    PairedPlan,
+    Pilot,
+    format_interval_plan,
+    format_paired_plan,
+    mcnemar_critical_counts,
+    mcnemar_power,
+    plan_paired,
+)
 from openral_mjx.stats.report_comparison import (
     ReportComparison,
     check_comparable,
@@ -37,8 +49,12 @@ from openral_mjx.stats.sequential import SequentialDesign, sufficient_episodes
 
 __all__ = [
     "INTERVAL_METHODS",
+    "PLAN_CAP",
     "UNPAIRED_TESTS",
     "Comparison",
+    "PairedDesign",
+    "PairedPlan",
+    "Pilot",
     "ReportComparison",
     "SequentialDesign",
     "binomial_interval",
@@ -50,11 +66,16 @@ __all__ = [
     "episodes_for_halfwidth",
     "format_breakdown",
     "format_comparison",
+    "format_interval_plan",
+    "format_paired_plan",
     "holm_adjusted",
+    "mcnemar_critical_counts",
     "mcnemar_exact_pvalue",
+    "mcnemar_power",
     "newcombe_interval",
     "newcombe_paired_interval",
     "paired_comparison",
+    "plan_paired",
     "sufficient_episodes",
     "two_proportion_z_pvalue",
     "unpaired_comparison",

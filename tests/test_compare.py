@@ -7,6 +7,7 @@ import sys
 
 import numpy as np
 import pytest
+from report_variants import variant, with_steps
 
 from openral_mjx import compare as compare_cli
 from openral_mjx.evaluation import evaluate
@@ -17,29 +18,6 @@ from openral_mjx.stats import paired_comparison, unpaired_comparison
 @pytest.fixture(scope="module")
 def base() -> EvalReport:
     return evaluate("tabletop_push", "zero", n_envs=8, max_steps=2, backend="c", threads=1)
-
-
-def variant(report: EvalReport, outcomes, seeds=None, **fields) -> EvalReport:
-    """`report` with the given per-episode successes (and seeds), totals kept consistent."""
-    seeds = list(range(len(outcomes))) if seeds is None else list(seeds)
-    template = report.episodes[0]
-    episodes = [
-        dataclasses.replace(
-            template, success=bool(ok), metadata={**template.metadata, "seed": int(s)}
-        )
-        for ok, s in zip(outcomes, seeds, strict=True)
-    ]
-    k, n = int(sum(outcomes)), len(outcomes)
-    row = dataclasses.replace(report.per_task[0], n_episodes=n, successes=k, success_rate=k / n)
-    return dataclasses.replace(
-        report,
-        episodes=episodes,
-        successes=k,
-        n_episodes=n,
-        success_rate=k / n,
-        per_task=[row],
-        **fields,
-    )
 
 
 def run_compare(monkeypatch, capsys, tmp_path, a: EvalReport, b: EvalReport, *flags):
@@ -131,19 +109,6 @@ def test_missing_and_broken_files(monkeypatch, capsys, tmp_path, base):
         with pytest.raises(SystemExit) as exc:
             compare_cli.main()
         assert exc.value.code == 2 and capsys.readouterr().err.startswith("error: report ")
-
-
-def with_steps(report: EvalReport, steps: list[int]) -> EvalReport:
-    """`report` whose episode i reached success at control step ``steps[i]``."""
-    episodes = [
-        dataclasses.replace(
-            e,
-            steps=int(s),
-            metadata={**e.metadata, "first_success_step": int(s) if e.success else -1},
-        )
-        for e, s in zip(report.episodes, steps, strict=True)
-    ]
-    return dataclasses.replace(report, episodes=episodes)
 
 
 def test_a_mirror_pairs_with_its_original_and_reports_steps_to_success(

@@ -80,7 +80,7 @@ class PairedDesign:
         if not 0 <= self.rate_a <= 1:
             raise ConfigError(f"rate must lie in [0, 1], got {self.rate_a}")
         low, high = -self.rate_a, 1 - self.rate_a
-        if self.difference == 0 or not low <= self.difference <= high:
+        if self.difference == 0 or not low - 1e-12 <= self.difference <= high + 1e-12:
             raise ConfigError(
                 f"difference must be non-zero and keep B's rate (rate + difference) in [0, 1]: "
                 f"valid [{low:g}, {high:g}] except 0 at rate {self.rate_a:g}, "
@@ -109,7 +109,7 @@ class PairedDesign:
 
     @property
     def rate_b(self) -> float:
-        return self.rate_a + self.difference
+        return min(1.0, max(0.0, self.rate_a + self.difference))  # 0.9 + 0.1 is 1 + 2e-16
 
     @property
     def only_a(self) -> float:

@@ -8,6 +8,7 @@ import sys
 import numpy as np
 import pytest
 from report_variants import variant, with_steps
+from scipy import stats as sps
 
 from openral_mjx import compare as compare_cli
 from openral_mjx.evaluation import evaluate
@@ -79,6 +80,7 @@ def test_disjoint_seeds_are_unpaired(monkeypatch, capsys, tmp_path, base):
     assert f"two-proportion z p = {ref.p_value:.2g}" in out
     assert "B's success rate is higher than A's at the 5% level" in out
     assert "note: the runs differ in max_steps" in out
+    assert "t interval" not in out  # means of paired differences need common seeds
 
 
 @pytest.mark.parametrize(
@@ -135,3 +137,27 @@ def test_scenes_that_mirror_nothing_of_each_other_are_not_comparable(
     code, _, err = run_compare(monkeypatch, capsys, tmp_path, a, b)
     assert code == 2
     assert "not comparable: scene 'libero' (A) vs 'metaworld_mjx' (B)" in err
+
+
+def test_paired_reports_compare_mean_steps_and_reward_with_a_t_interval(
+    monkeypatch, capsys, tmp_path, base
+):
+    """Steps to success over the seeds both succeed on (0, 3, 6: B - A = 2, 1, 5) and total
+    reward over all ten, each a mean of paired differences with scipy's paired t interval."""
+    rng = np.random.default_rng(2)
+    reward_a, reward_b = rng.normal(0, 1, 10), rng.normal(0.5, 1, 10)
+    steps_a, steps_b = [10, 0, 0, 20, 0, 0, 30, 0, 0, 0], [12, 5, 5, 21, 0, 5, 35, 5, 0, 5]
+    a = with_steps(variant(base, A), steps_a, reward_a)
+    b = with_steps(variant(base, B, policy="scripted"), steps_b, reward_b)
+    code, out, _ = run_compare(monkeypatch, capsys, tmp_path, a, b, "--confidence", "0.9")
+    assert code == 0
+    ci = sps.ttest_rel([12, 21, 35], [10, 20, 30]).confidence_interval(0.9)
+    assert (
+        "steps to success where both succeed (3 seeds): median B - A = +2, mean +2.667, "
+        f"90% t interval [{ci.low:+.4g}, {ci.high:+.4g}]"
+    ) in out
+    ci = sps.ttest_rel(reward_b, reward_a).confidence_interval(0.9)
+    assert (
+        f"total reward over 10 common seeds: mean B - A = {np.mean(reward_b - reward_a):+.4g}, "
+        f"90% t interval [{ci.low:+.4g}, {ci.high:+.4g}]"
+    ) in out

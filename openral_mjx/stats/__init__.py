@@ -1,10 +1,11 @@
 """Success-rate statistics: binomial intervals (`intervals`), comparisons of two policies
-(`comparison`, and `report_comparison` for two reports), the exact group-sequential design
+(`comparison`, and `report_comparison` for two reports), paired differences of a continuous
+per-episode value such as steps or reward (`continuous`), the exact group-sequential design
 (`sequential`), sample sizes planned before a run (`planning`) and the success breakdown by
 episode factor (`breakdown`).
 
 A new statistic goes in the module of its kind, with an exact or simulated oracle in
-`tests/stats/test_stats.py`; what users call is re-exported here.
+`tests/stats/`; what users call is re-exported here.
 """
 
 from openral_mjx.stats.breakdown import breakdown, format_breakdown
@@ -19,6 +20,7 @@ from openral_mjx.stats.comparison import (
     two_proportion_z_pvalue,
     unpaired_comparison,
 )
+from openral_mjx.stats.continuous import PairedMean, paired_mean_difference, t_interval
 from openral_mjx.stats.intervals import (
     INTERVAL_METHODS,
     binomial_interval,
@@ -53,6 +55,7 @@ __all__ = [
     "UNPAIRED_TESTS",
     "Comparison",
     "PairedDesign",
+    "PairedMean",
     "PairedPlan",
     "Pilot",
     "ReportComparison",
@@ -75,8 +78,10 @@ __all__ = [
     "newcombe_interval",
     "newcombe_paired_interval",
     "paired_comparison",
+    "paired_mean_difference",
     "plan_paired",
     "sufficient_episodes",
+    "t_interval",
     "two_proportion_z_pvalue",
     "unpaired_comparison",
     "wilson_interval",

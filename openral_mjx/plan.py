@@ -115,7 +115,10 @@ def run_compare(args: CompareArgs) -> int:
     if upper.discordance > plan.design.discordance:
         cautious = plan_paired(upper, args.power, args.max_seeds)
         seeds = "more than the cap" if cautious.seeds is None else f"{cautious.seeds:,} seeds"
-        lines.append(f"at the interval's upper end ({100 * upper.discordance:.1f}%): {seeds}")
+        end = f"{100 * upper.discordance:.1f}%"
+        if upper.discordance < pilot.interval[1]:
+            end = f"{100 * pilot.interval[1]:.1f}%, at most {end} at these rates"
+        lines.append(f"at the interval's upper end ({end}): {seeds}")
     print("\n".join(lines))
     return 0
 

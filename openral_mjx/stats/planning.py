@@ -16,9 +16,10 @@ probability must lie in [0, 1]) and give the independence value of psi when none
 
 The exact test's power is not monotone in n (its rejection region moves in integer steps), so
 the plan reports the fewest seeds whose power reaches the target, found by checking every n
-from a proven lower bound, and the fewest from which it stays at or above the target for the
-next 10% of n. The lower bound is the power of the one-sided randomised Neyman-Pearson test
-at level alpha, which is at least the two-sided exact test's and, unlike it, grows with n.
+from a proven lower bound (an upper bound on the power that, unlike the power, does not fall
+with n: see `_Tables`), and the fewest from which it stays at or above the target through
+twice that many seeds (a lower bound that does not fall with n covers the far part of that
+range: see `_stays`). The Python loop runs over the few n between the bounds only.
 
 References: McNemar (1947), Psychometrika 12: 153-157; Fagerland, Lydersen & Laake (2017),
 "Statistical Analysis of Contingency Tables", ch. 8 (the exact conditional McNemar test);
@@ -34,12 +35,11 @@ from collections.abc import Callable, Iterator
 import numpy as np
 from scipy import stats as sps
 
-from openral_mjx.core.errors import ConfigError
+from openral_mjx.core.errors import ConfigError, unknown
 from openral_mjx.stats.comparison import Comparison, mcnemar_exact_pvalue
 from openral_mjx.stats.intervals import episodes_for_halfwidth, wilson_interval
 
 PLAN_CAP = 1_000_000  # the most seeds a plan searches
-STABLE_SPAN = 0.10  # "stays above the target" is checked over the next 10% of n
 DISCORDANCE_SOURCES = ("stated", "reports", "independence")
 
 
@@ -95,9 +95,7 @@ class PairedDesign:
             )
         _check_open("alpha", self.alpha)
         if self.source not in DISCORDANCE_SOURCES:
-            raise ConfigError(
-                f"unknown discordance source {self.source!r}; valid: {DISCORDANCE_SOURCES}"
-            )
+            raise unknown("discordance source", self.source, DISCORDANCE_SOURCES)
 
     @classmethod
     def independent(cls, rate_a: float, difference: float, alpha: float = 0.05) -> PairedDesign:

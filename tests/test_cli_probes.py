@@ -97,6 +97,11 @@ PLAN = [
     (["compare", "--difference", "0.1", "--from", "{in}/good.json", "{in}/good.json"], "same file"),
     (["compare", "--difference", "0.1", "--from", "{in}/good.json", "{in}/maybe.json"], "'maybe'"),
     (["compare", "--difference", "0.1", "--from", "{in}/good.json"], "--from"),
+    (["compare", "--rate", "0.6", "--difference", "0.1", "--max-seeds", "10**12"], "'10**12'"),
+    (
+        ["compare", "--rate", "0.6", "--difference", "0.1", "--max-seeds", "1000000000000"],
+        "1000000000000",
+    ),
     (["interval", "--halfwidth", "0.7"], "0.7"),
     (["interval", "--halfwidth", "0.03", "--method", "wald"], "'wald'"),
     (["nosuch"], "nosuch"),

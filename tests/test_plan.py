@@ -108,7 +108,7 @@ def test_compare_from_reports_measures_the_discordance(capsys, tmp_path, base):
         (["--rate", "0.6", "--difference", "0.1", "--discordance", "1.2"], "got 1.2"),
         (["--rate", "0.6", "--difference", "0.1", "--alpha", "1.5"], "alpha must lie in (0, 1)"),
         (["--rate", "0.6", "--difference", "0.1", "--power", "0"], "power must lie in (0, 1)"),
-        (["--rate", "0.6", "--difference", "0.1", "--max-seeds", "0"], "--max-seeds must be"),
+        (["--rate", "0.6", "--difference", "0.1", "--max-seeds", "0"], "--max-seeds must lie in"),
         (["--rate", "nan", "--difference", "0.1"], "--rate must be a finite number, got nan"),
         (["--difference", "0.1"], "give --rate"),
         (["--rate", "0.6"], "--difference"),

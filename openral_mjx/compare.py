@@ -7,10 +7,12 @@ discordant pairs and Newcombe's paired interval for rate_B - rate_A. Reports wit
 common (or with `--unpaired`) are compared as independent samples: two-proportion z test or
 Fisher's exact test, Newcombe's hybrid-score interval. A mirror scene's report and its
 original's (``libero_mjx`` and ``libero``) pair the same way: seed s is one initial state on
-both, and the steps-to-success line says whether one reaches the goal sooner. Reports of
-another scene, task or schema version are not comparable, and a report that fails validation
-(a wrong type, a missing field, counts that do not add up) or the same file given twice is
-refused: one line on stderr, exit code 2.
+both, and the steps-to-success line says whether one reaches the goal sooner. Paired reports
+also get the mean B - A of the steps to success (seeds where both succeed) and of the total
+reward (every common seed), each with a t interval. Reports of another scene, task or schema
+version are not comparable, and a report that fails validation (a wrong type, a missing field,
+counts that do not add up) or the same file given twice is refused: one line on stderr, exit
+code 2.
 
 Example: ``python -m openral_mjx.compare results/random.json results/scripted.json``.
 """

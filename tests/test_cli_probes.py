@@ -17,7 +17,7 @@ from pathlib import Path
 
 import pytest
 
-from openral_mjx import bench, compare, finetune
+from openral_mjx import bench, compare, finetune, plan
 from openral_mjx import eval as eval_cli
 from openral_mjx.training import runs
 
@@ -87,6 +87,25 @@ COMPARE = [
     (["{in}/good.json", "{in}/good.json", "--confidence", "nan"], "nan"),
     (["{in}/good.json", "{in}/good.json", "--confidence", "abc"], "'abc'"),
 ]
+PLAN = [
+    (["compare", "--rate", "1.5", "--difference", "0.1"], "1.5"),
+    (["compare", "--rate", "0.6", "--difference", "0.5"], "0.5"),
+    (["compare", "--rate", "0.6", "--difference", "0.1", "--discordance", "0.01"], "0.01"),
+    (["compare", "--rate", "0.6", "--difference", "0.1", "--power", "1"], "1.0"),
+    (["compare", "--rate", "abc", "--difference", "0.1"], "'abc'"),
+    (["compare", "--rate", "0.6", "--difference", "inf"], "inf"),
+    (["compare", "--difference", "0.1", "--from", "{in}/good.json", "{in}/good.json"], "same file"),
+    (["compare", "--difference", "0.1", "--from", "{in}/good.json", "{in}/maybe.json"], "'maybe'"),
+    (["compare", "--difference", "0.1", "--from", "{in}/good.json"], "--from"),
+    (["compare", "--rate", "0.6", "--difference", "0.1", "--max-seeds", "10**12"], "'10**12'"),
+    (
+        ["compare", "--rate", "0.6", "--difference", "0.1", "--max-seeds", "1000000000000"],
+        "1000000000000",
+    ),
+    (["interval", "--halfwidth", "0.7"], "0.7"),
+    (["interval", "--halfwidth", "0.03", "--method", "wald"], "'wald'"),
+    (["nosuch"], "nosuch"),
+]
 BENCH = [
     (["--out", NOT_A_DIR], "/etc/hostname"),
     (["--out", "{in}"], "is a directory"),
@@ -117,6 +136,7 @@ FINETUNE = [
 CASES = [
     *((eval_cli, *c) for c in EVAL),
     *((compare, *c) for c in COMPARE),
+    *((plan, *c) for c in PLAN),
     *((bench, *c) for c in BENCH),
     *((finetune, *c) for c in FINETUNE),
 ]

@@ -7,6 +7,8 @@ import sys
 
 import numpy as np
 import pytest
+from report_variants import variant, with_steps
+from scipy import stats as sps
 
 from openral_mjx import compare as compare_cli
 from openral_mjx.evaluation import evaluate
@@ -17,29 +19,6 @@ from openral_mjx.stats import paired_comparison, unpaired_comparison
 @pytest.fixture(scope="module")
 def base() -> EvalReport:
     return evaluate("tabletop_push", "zero", n_envs=8, max_steps=2, backend="c", threads=1)
-
-
-def variant(report: EvalReport, outcomes, seeds=None, **fields) -> EvalReport:
-    """`report` with the given per-episode successes (and seeds), totals kept consistent."""
-    seeds = list(range(len(outcomes))) if seeds is None else list(seeds)
-    template = report.episodes[0]
-    episodes = [
-        dataclasses.replace(
-            template, success=bool(ok), metadata={**template.metadata, "seed": int(s)}
-        )
-        for ok, s in zip(outcomes, seeds, strict=True)
-    ]
-    k, n = int(sum(outcomes)), len(outcomes)
-    row = dataclasses.replace(report.per_task[0], n_episodes=n, successes=k, success_rate=k / n)
-    return dataclasses.replace(
-        report,
-        episodes=episodes,
-        successes=k,
-        n_episodes=n,
-        success_rate=k / n,
-        per_task=[row],
-        **fields,
-    )
 
 
 def run_compare(monkeypatch, capsys, tmp_path, a: EvalReport, b: EvalReport, *flags):
@@ -101,6 +80,7 @@ def test_disjoint_seeds_are_unpaired(monkeypatch, capsys, tmp_path, base):
     assert f"two-proportion z p = {ref.p_value:.2g}" in out
     assert "B's success rate is higher than A's at the 5% level" in out
     assert "note: the runs differ in max_steps" in out
+    assert "t interval" not in out  # means of paired differences need common seeds
 
 
 @pytest.mark.parametrize(
@@ -133,19 +113,6 @@ def test_missing_and_broken_files(monkeypatch, capsys, tmp_path, base):
         assert exc.value.code == 2 and capsys.readouterr().err.startswith("error: report ")
 
 
-def with_steps(report: EvalReport, steps: list[int]) -> EvalReport:
-    """`report` whose episode i reached success at control step ``steps[i]``."""
-    episodes = [
-        dataclasses.replace(
-            e,
-            steps=int(s),
-            metadata={**e.metadata, "first_success_step": int(s) if e.success else -1},
-        )
-        for e, s in zip(report.episodes, steps, strict=True)
-    ]
-    return dataclasses.replace(report, episodes=episodes)
-
-
 def test_a_mirror_pairs_with_its_original_and_reports_steps_to_success(
     monkeypatch, capsys, tmp_path, base
 ):
@@ -170,3 +137,27 @@ def test_scenes_that_mirror_nothing_of_each_other_are_not_comparable(
     code, _, err = run_compare(monkeypatch, capsys, tmp_path, a, b)
     assert code == 2
     assert "not comparable: scene 'libero' (A) vs 'metaworld_mjx' (B)" in err
+
+
+def test_paired_reports_compare_mean_steps_and_reward_with_a_t_interval(
+    monkeypatch, capsys, tmp_path, base
+):
+    """Steps to success over the seeds both succeed on (0, 3, 6: B - A = 2, 1, 5) and total
+    reward over all ten, each a mean of paired differences with scipy's paired t interval."""
+    rng = np.random.default_rng(2)
+    reward_a, reward_b = rng.normal(0, 1, 10), rng.normal(0.5, 1, 10)
+    steps_a, steps_b = [10, 0, 0, 20, 0, 0, 30, 0, 0, 0], [12, 5, 5, 21, 0, 5, 35, 5, 0, 5]
+    a = with_steps(variant(base, A), steps_a, reward_a)
+    b = with_steps(variant(base, B, policy="scripted"), steps_b, reward_b)
+    code, out, _ = run_compare(monkeypatch, capsys, tmp_path, a, b, "--confidence", "0.9")
+    assert code == 0
+    ci = sps.ttest_rel([12, 21, 35], [10, 20, 30]).confidence_interval(0.9)
+    assert (
+        "steps to success where both succeed (3 seeds): median B - A = +2, mean +2.667, "
+        f"90% t interval [{ci.low:+.4g}, {ci.high:+.4g}]"
+    ) in out
+    ci = sps.ttest_rel(reward_b, reward_a).confidence_interval(0.9)
+    assert (
+        f"total reward over 10 common seeds: mean B - A = {np.mean(reward_b - reward_a):+.4g}, "
+        f"90% t interval [{ci.low:+.4g}, {ci.high:+.4g}]"
+    ) in out

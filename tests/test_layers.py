@@ -21,7 +21,7 @@ ROOT = Path(openral_mjx.__file__).parent
 # Top to bottom, as docs/architecture.md lists them. Units on one line are peers
 # that never import each other.
 LAYERS = [
-    {"eval.py", "compare.py", "bench.py", "finetune.py"},
+    {"eval.py", "compare.py", "plan.py", "bench.py", "finetune.py"},
     {"cli"},
     {"viz", "training", "perf"},
     {"evaluation"},

@@ -1,9 +1,11 @@
 """Success-rate statistics: binomial intervals (`intervals`), comparisons of two policies
-(`comparison`, and `report_comparison` for two reports), the exact group-sequential design
-(`sequential`) and the success breakdown by episode factor (`breakdown`).
+(`comparison`, and `report_comparison` for two reports), paired differences of a continuous
+per-episode value such as steps or reward (`continuous`), the exact group-sequential design
+(`sequential`), sample sizes planned before a run (`planning`) and the success breakdown by
+episode factor (`breakdown`).
 
 A new statistic goes in the module of its kind, with an exact or simulated oracle in
-`tests/stats/test_stats.py`; what users call is re-exported here.
+`tests/stats/`; what users call is re-exported here.
 """
 
 from openral_mjx.stats.breakdown import breakdown, format_breakdown
@@ -18,6 +20,7 @@ from openral_mjx.stats.comparison import (
     two_proportion_z_pvalue,
     unpaired_comparison,
 )
+from openral_mjx.stats.continuous import PairedMean, paired_mean_difference, t_interval
 from openral_mjx.stats.intervals import (
     INTERVAL_METHODS,
     binomial_interval,
@@ -26,6 +29,17 @@ from openral_mjx.stats.intervals import (
     episodes_for_halfwidth,
     wilson_interval,
     z_value,
+)
+from openral_mjx.stats.planning import (
+    PLAN_CAP,
+    PairedDesign,
+    PairedPlan,
+    Pilot,
+    format_interval_plan,
+    format_paired_plan,
+    mcnemar_critical_counts,
+    mcnemar_power,
+    plan_paired,
 )
 from openral_mjx.stats.report_comparison import (
     ReportComparison,
@@ -37,8 +51,13 @@ from openral_mjx.stats.sequential import SequentialDesign, sufficient_episodes
 
 __all__ = [
     "INTERVAL_METHODS",
+    "PLAN_CAP",
     "UNPAIRED_TESTS",
     "Comparison",
+    "PairedDesign",
+    "PairedMean",
+    "PairedPlan",
+    "Pilot",
     "ReportComparison",
     "SequentialDesign",
     "binomial_interval",
@@ -50,12 +69,19 @@ __all__ = [
     "episodes_for_halfwidth",
     "format_breakdown",
     "format_comparison",
+    "format_interval_plan",
+    "format_paired_plan",
     "holm_adjusted",
+    "mcnemar_critical_counts",
     "mcnemar_exact_pvalue",
+    "mcnemar_power",
     "newcombe_interval",
     "newcombe_paired_interval",
     "paired_comparison",
+    "paired_mean_difference",
+    "plan_paired",
     "sufficient_episodes",
+    "t_interval",
     "two_proportion_z_pvalue",
     "unpaired_comparison",
     "wilson_interval",

@@ -7,7 +7,9 @@ use a two-proportion z test or Fisher's exact test and Newcombe's hybrid-score i
 Reports of another scene or task are not comparable (`ConfigError`), except a mirror scene's
 and its original's (`mirrored`), whose seed s is the same initial state. Where both reports
 succeed on a shared seed, the median difference in steps to success says whether one reaches
-the goal sooner (a mirror whose successes come sooner is not quite the same task).
+the goal sooner (a mirror whose successes come sooner is not quite the same task). Paired
+reports also get the mean difference of two continuous values with a t interval
+(`continuous`): steps to success where both succeed, total reward on every common seed.
 """
 
 from __future__ import annotations
@@ -24,6 +26,7 @@ from openral_mjx.stats.comparison import (
     paired_comparison,
     unpaired_comparison,
 )
+from openral_mjx.stats.continuous import PairedMean, format_paired_mean, paired_mean_difference
 from openral_mjx.stats.intervals import check_confidence
 
 
@@ -40,6 +43,10 @@ class ReportComparison:
     # success minus A's (None: no such seed)
     both_succeeded: int = 0
     steps_median_difference: float | None = None
+    # paired reports: mean B - A with a t interval, of the steps to success (seeds where both
+    # succeed) and of the total reward (every common seed); None where no seed qualifies
+    steps_difference: PairedMean | None = None
+    reward_difference: PairedMean | None = None
 
 
 def check_comparable(a: EvalReport, b: EvalReport, mirrored: bool = False) -> None:
@@ -64,6 +71,10 @@ def _steps_to_success(report: EvalReport) -> dict[int, int]:
         for e in report.episodes
         if e.success
     }
+
+
+def _rewards(report: EvalReport) -> dict[int, float]:
+    return {int(e.metadata["seed"]): float(e.total_reward) for e in report.episodes}
 
 
 def _notes(a: EvalReport, b: EvalReport) -> list[str]:
@@ -117,6 +128,13 @@ def compare_reports(
         comparison = paired_comparison(
             np.array([oa[s] for s in common]), np.array([ob[s] for s in common]), confidence
         )
+        ra, rb = _rewards(a), _rewards(b)
+        timing["steps_difference"] = paired_mean_difference(
+            [sa[s] for s in both], [sb[s] for s in both], "steps to success", confidence
+        )
+        timing["reward_difference"] = paired_mean_difference(
+            [ra[s] for s in common], [rb[s] for s in common], "total reward", confidence
+        )
         left_a, left_b = len(oa) - len(common), len(ob) - len(common)
         if left_a or left_b:
             notes.append(
@@ -159,9 +177,19 @@ def format_comparison(rc: ReportComparison, a: EvalReport, b: EvalReport, names=
         )
         if rc.steps_median_difference is not None:
             seeds = "seed" if rc.both_succeeded == 1 else "seeds"
-            lines.append(
+            line = (
                 f"steps to success where both succeed ({rc.both_succeeded:,} {seeds}): median "
                 f"B - A = {rc.steps_median_difference:+g}"
+            )
+            if (sd := rc.steps_difference) is not None and sd.ci_low is not None:
+                line += (
+                    f", mean {sd.mean:+.4g}, {round(100 * sd.confidence)}% t interval "
+                    f"[{sd.ci_low:+.4g}, {sd.ci_high:+.4g}]"
+                )
+            lines.append(line)
+        if rc.reward_difference is not None:
+            lines.append(
+                format_paired_mean(rc.reward_difference, f"over {rc.common_seeds:,} common seeds")
             )
         method, test = "Newcombe paired", "exact McNemar"
     else:

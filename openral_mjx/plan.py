@@ -1,0 +1,146 @@
+"""`python -m openral_mjx.plan`: how many seeds to run before running them.
+
+``plan compare``: paired seeds (both policies on the same seeds, as `compare` pairs them) to
+detect a difference rate_B - rate_A of ``--difference`` at A's rate ``--rate`` with power
+``--power``, by the exact McNemar test at two-sided level ``--alpha``, which is the test
+`compare` runs; its power is computed exactly. It depends on the discordance, the share of
+seeds on which exactly one policy succeeds: stated (``--discordance``), measured on the common
+seeds of two earlier reports (``--from A.json B.json``), or, with neither, what independent
+outcomes would give (the output says which). ``plan interval``: episodes for a
+``--halfwidth`` interval of one policy's success rate at about ``--rate``.
+
+A value out of its range (a rate outside [0, 1], B's rate ``rate + difference`` outside it, a
+discordance the rates cannot produce, alpha or power outside (0, 1)) is one line on stderr
+naming it and the valid range, exit code 2.
+
+Example: ``python -m openral_mjx.plan compare --rate 0.6 --difference 0.1 --discordance 0.2``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Annotated
+
+import tyro
+
+from openral_mjx.cli.common import guarded, parse
+from openral_mjx.core.errors import ConfigError, unknown
+from openral_mjx.report import load_report
+from openral_mjx.stats import (
+    INTERVAL_METHODS,
+    PLAN_CAP,
+    PairedDesign,
+    Pilot,
+    check_confidence,
+    compare_reports,
+    format_interval_plan,
+    format_paired_plan,
+    plan_paired,
+)
+
+MAX_SEEDS = PLAN_CAP  # the search's tables grow with it: ~15 s near 10^6 on 2 cores
+
+
+@dataclasses.dataclass
+class CompareArgs:
+    """Paired seeds to detect a difference B - A with the exact McNemar test (as compare)."""
+
+    difference: float
+    """rate_B - rate_A to detect (0.1: ten points better; negative: worse)."""
+    rate: float | None = None
+    """A's success rate, about (required unless --from; then A's rate in those reports)."""
+    discordance: float | None = None
+    """Share of seeds on which exactly one policy succeeds (default: as if independent)."""
+    from_: Annotated[tuple[Path, Path] | None, tyro.conf.arg(name="from")] = None
+    """Two earlier reports (A B) whose common seeds measure the discordance."""
+    alpha: float = 0.05
+    """Two-sided level of the test."""
+    power: float = 0.8
+    """Power wanted: the probability of detecting the difference if it is real."""
+    max_seeds: int = PLAN_CAP
+    """The most seeds the search considers (at most 1,000,000)."""
+
+
+@dataclasses.dataclass
+class IntervalArgs:
+    """Episodes for a success-rate interval of a given half-width."""
+
+    halfwidth: float
+    """Half-width wanted, as a fraction (0.03: +-3 points)."""
+    rate: float = 0.5
+    """The success rate expected, about (0.5, the default, is the worst case)."""
+    confidence: float = 0.95
+    """Confidence level of the interval."""
+    method: str = "wilson"
+    """Interval: wilson or clopper-pearson."""
+
+
+def _pilot(paths: tuple[Path, Path]) -> Pilot:
+    # imported here: the scene registry loads MJX (seconds), which only --from needs
+    from openral_mjx.scenes import mirrored
+
+    a, b = (load_report(p) for p in paths)
+    if os.path.samefile(*paths):
+        raise ConfigError(
+            f"--from names the same file twice ({str(paths[0])!r}, {str(paths[1])!r}): give "
+            "two runs"
+        )
+    rc = compare_reports(a, b, mirrored=mirrored(a.scene, b.scene))
+    return Pilot.from_comparison(rc.comparison)
+
+
+def run_compare(args: CompareArgs) -> int:
+    if not 1 <= args.max_seeds <= MAX_SEEDS:
+        raise ConfigError(f"--max-seeds must lie in [1, {MAX_SEEDS:,}], got {args.max_seeds}")
+    if args.from_ is None:
+        if args.rate is None:
+            raise ConfigError("give --rate (A's success rate, about), or --from A.json B.json")
+        if args.discordance is None:
+            design = PairedDesign.independent(args.rate, args.difference, args.alpha)
+        else:
+            design = PairedDesign(args.rate, args.difference, args.discordance, args.alpha)
+        plan = plan_paired(design, args.power, args.max_seeds)
+        print(format_paired_plan(plan))
+        return 0
+    if args.discordance is not None:
+        raise ConfigError("give --discordance or --from, not both")
+    pilot = _pilot(args.from_)
+    plan = plan_paired(
+        pilot.design(args.difference, args.rate, args.alpha), args.power, args.max_seeds
+    )
+    where = f" of {args.from_[0]} and {args.from_[1]}"
+    lines = [format_paired_plan(plan, pilot, where)]
+    upper = pilot.design(args.difference, args.rate, args.alpha, upper=True)
+    if upper.discordance > plan.design.discordance:
+        cautious = plan_paired(upper, args.power, args.max_seeds)
+        seeds = "more than the cap" if cautious.seeds is None else f"{cautious.seeds:,} seeds"
+        end = f"{100 * upper.discordance:.1f}%"
+        if upper.discordance < pilot.interval[1]:
+            end = f"{100 * pilot.interval[1]:.1f}%, at most {end} at these rates"
+        lines.append(f"at the interval's upper end ({end}): {seeds}")
+    print("\n".join(lines))
+    return 0
+
+
+def run_interval(args: IntervalArgs) -> int:
+    check_confidence(args.confidence)
+    if args.method not in INTERVAL_METHODS:
+        raise unknown("interval method", args.method, INTERVAL_METHODS)
+    print(format_interval_plan(args.halfwidth, args.rate, args.confidence, args.method))
+    return 0
+
+
+def main(argv: Sequence[str] | None = None) -> None:
+    """The command: `argv` (default: the process's arguments) -> exit code."""
+    prog = "python -m openral_mjx.plan"
+    commands = {"compare": CompareArgs, "interval": IntervalArgs}
+    args = parse(lambda: tyro.extras.subcommand_cli_from_dict(commands, prog=prog, args=argv), prog)
+    run = {CompareArgs: run_compare, IntervalArgs: run_interval}[type(args)]
+    raise SystemExit(guarded(lambda: run(args)))
+
+
+if __name__ == "__main__":
+    main()

@@ -56,7 +56,7 @@ EVAL = [
     (["--task", "nosuch"], "'nosuch'"),
     (["--scene", "so101_box", "--task", "nosuch"], "'nosuch'"),
     (["--scene", "metaworld_mjx", "--task", "nosuch-v3"], "'nosuch-v3'"),
-    (["--scene", "libero"], "zero, random"),
+    (["--scene", "robosuite"], "zero, random"),
     (["--compare-with", "{in}"], "is a directory"),
     (["--compare-with", "{in}/successes_x.json"], "'x'"),
     (["--out", NOT_A_DIR], "/etc/hostname"),

@@ -8,11 +8,13 @@ import pytest
 from cli_runs import run_cli
 
 from openral_mjx import eval as eval_cli
+from openral_mjx.policies import POLICIES
 from openral_mjx.report import load_report
 from openral_mjx.scenes import SCENES
 from openral_mjx.stats import clopper_pearson_interval
 
 EVERY_SCENE = ", ".join(sorted(SCENES.names()))  # what an unknown scene's error lists
+EVERY_POLICY = ", ".join(sorted(POLICIES.names()))  # and an unknown policy's
 
 
 def test_small_eval_writes_report(monkeypatch, capsys, tmp_path):
@@ -141,8 +143,7 @@ def test_task_and_suite_help_come_from_the_registry(monkeypatch, capsys):
         (["--scene", "so101_box", "--opt", "tube_diameter=0.03"], "must be < hole_diameter"),
         (
             ["--policy", "nope"],
-            "unknown policy 'nope'; valid: depth_cnn, lerobot, metaworld-expert, mlp, mlp-sample, "
-            "random, scripted, torch, zero",
+            f"unknown policy 'nope'; valid: {EVERY_POLICY}",
         ),
         (["--robot", "ur5"], "unknown robot 'ur5'; valid: so101"),
         (["--backend", "gpu"], "unknown backend 'gpu'; valid: auto, mjx, warp, c"),

@@ -19,7 +19,7 @@ SCENE = SceneEntry(
     LiberoMjxOptions,
     LiberoMjx,
     host_scene.ROBOT,
-    backends=("c", "mjx", "warp"),
+    backends=("c", "warp"),  # mjx: builds, but its step did not compile in 15 min on a CPU
     suites=host_scene.suite_tasks,
     worker_env=ENV,
     tasks=host_scene.SCENE.tasks,

@@ -18,7 +18,8 @@ import numpy as np
 Pairs = tuple[tuple[tuple[str, ...], tuple[str, ...]], ...]
 
 
-def _in_subtree(model: mujoco.MjModel, body: int, root: int) -> bool:
+def in_subtree(model: mujoco.MjModel, body: int, root: int) -> bool:
+    """Whether `body` lies in the subtree rooted at `root`."""
     while body > 0:
         if body == root:
             return True
@@ -38,7 +39,7 @@ def contact_side(
             subtree = {
                 g
                 for g in range(model.ngeom)
-                if collide[g] and _in_subtree(model, int(model.geom_bodyid[g]), body)
+                if collide[g] and in_subtree(model, int(model.geom_bodyid[g]), body)
             }
             if subtree == ids:
                 return [(mujoco.mjtObj.mjOBJ_XBODY, model.body(body).name)]

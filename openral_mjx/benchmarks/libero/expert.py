@@ -42,6 +42,7 @@ from openral_mjx.benchmarks.libero.assets import load_task, physics_spec
 from openral_mjx.benchmarks.libero.export import EXPERT_SIZE, expert_frames
 from openral_mjx.core.errors import ConfigError
 from openral_mjx.core.rotations import quat_to_mat
+from openral_mjx.physics.contact_sensors import in_subtree
 from openral_mjx.policies.base import Policy
 
 SCENES = ("libero", "libero_mjx")
@@ -71,10 +72,7 @@ def _colliding_box(m: mujoco.MjModel, d: mujoco.MjData, body: int) -> tuple[np.n
     for g in range(m.ngeom):
         if not (m.geom_contype[g] or m.geom_conaffinity[g]):
             continue
-        b = int(m.geom_bodyid[g])
-        while b > 0 and b != body:
-            b = int(m.body_parentid[b])
-        if b != body:
+        if not in_subtree(m, int(m.geom_bodyid[g]), body):
             continue
         center, half = m.geom_aabb[g, :3], m.geom_aabb[g, 3:]
         corners = center + half * np.array(np.meshgrid(*[[-1, 1]] * 3)).reshape(3, -1).T

@@ -30,7 +30,7 @@ from openral_mjx.physics import BACKEND_NAMES, PhysicsSettings, resolve_backend_
 from openral_mjx.physics.c_backend import default_threads
 from openral_mjx.runner import MAX_ENVS, MAX_EPISODES, MAX_STEPS, check_batching
 from openral_mjx.runner.compile_cache import enable_compilation_cache
-from openral_mjx.scenes import SCENES, make_scene
+from openral_mjx.scenes import SCENES, make_scene, scene_settings
 
 
 @dataclasses.dataclass
@@ -49,8 +49,8 @@ class BenchArgs:
     """Cap on envs for the MuJoCo C reference (its rate does not depend on N past the cores)."""
     threads: int | None = None
     """Threads for MuJoCo C (default: all cores)."""
-    contacts_per_env: int = PhysicsSettings.contacts_per_env
-    """Contact buffer per env of the warp backend."""
+    contacts_per_env: int | None = None
+    """Contact buffer per env of the warp backend (default: the scene's)."""
     out: Path = Path("results/bench.json")
     compile_cache: bool = True
     rays: bool = False
@@ -130,10 +130,11 @@ def run_batching_bench(args: BenchArgs) -> int:
         raise ConfigError(f"--n must be positive and at most --episodes, got {args.n}")
     if args.compile_cache:
         enable_compilation_cache()
-    settings = PhysicsSettings(
+    settings = scene_settings(
+        args.scene,
+        args.contacts_per_env,
         threads=args.threads or default_threads(),
         batch_size=max(args.n),
-        contacts_per_env=args.contacts_per_env,
     )
     scene = make_scene(args.scene, backend=backend, settings=settings)
     rows = compare_batching(
@@ -188,7 +189,7 @@ def validate(args: BenchArgs) -> None:
         ("--repeats", (args.repeats,), 1000),
         ("--geom-counts", args.geom_counts, 4096),
         ("--threads", (args.threads or 1,), MAX_SETTING["threads"]),
-        ("--contacts-per-env", (args.contacts_per_env,), MAX_SETTING["contacts_per_env"]),
+        ("--contacts-per-env", (args.contacts_per_env or 1,), MAX_SETTING["contacts_per_env"]),
         ("--refill-every", (args.refill_every,), MAX_STEPS),
     )
     for flag, values, most in bounds:
@@ -211,8 +212,8 @@ def run(args: BenchArgs) -> int:
     if args.compile_cache:
         enable_compilation_cache()
     threads = args.threads or default_threads()
-    settings = PhysicsSettings(
-        threads=threads, batch_size=max(args.n), contacts_per_env=args.contacts_per_env
+    settings = scene_settings(
+        args.scene, args.contacts_per_env, threads=threads, batch_size=max(args.n)
     )
     scene = make_scene(args.scene, backend=backend, settings=settings)
     args = dataclasses.replace(args, max_steps=args.max_steps or scene.max_steps)

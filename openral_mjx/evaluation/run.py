@@ -21,7 +21,6 @@ from openral_mjx.evaluation.partial import Interrupted, add_warnings
 from openral_mjx.evaluation.provenance import device_description, package_versions
 from openral_mjx.evaluation.sequential import SequentialRule
 from openral_mjx.evaluation.spec import RunSpec
-from openral_mjx.physics import PhysicsSettings
 from openral_mjx.physics.mj_warnings import count_warnings
 from openral_mjx.policies import Policy, make_policy
 from openral_mjx.policies.lerobot import implied_camera_options
@@ -33,7 +32,7 @@ from openral_mjx.runner import (
     resolve_batching,
     run_seeds,
 )
-from openral_mjx.scenes import SCENES, Scene, make_scene, randomization
+from openral_mjx.scenes import SCENES, Scene, make_scene, randomization, scene_settings
 from openral_mjx.stats.breakdown import breakdown
 from openral_mjx.stats.intervals import wilson_interval
 from openral_mjx.stats.sequential import RULE
@@ -56,11 +55,9 @@ def build_scene(
     check_counts(n_envs, 1, 1)
     if devices is not None and devices < 1:
         raise ConfigError(f"devices must be >= 1, got {devices}")
-    settings = PhysicsSettings(threads=threads, batch_size=n_envs, max_devices=devices)
-    if contacts_per_env is None and name in SCENES:
-        contacts_per_env = SCENES.get(name).contacts_per_env
-    if contacts_per_env is not None:
-        settings = dataclasses.replace(settings, contacts_per_env=contacts_per_env)
+    settings = scene_settings(
+        name, contacts_per_env, threads=threads, batch_size=n_envs, max_devices=devices
+    )
     scene = make_scene(name, options, backend=backend, settings=settings)
     return randomization.randomize(scene, randomize)
 

@@ -88,6 +88,19 @@ def check_task(name: str, task: str | None) -> bool:
     raise ConfigError(f"unknown task {task!r} for scene {name!r}; valid: {own} (its only task)")
 
 
+def scene_settings(
+    name: str, contacts_per_env: int | None = None, **fields: Any
+) -> PhysicsSettings:
+    """`PhysicsSettings(**fields)` for scene `name`: its `warp` contact capacity is
+    `contacts_per_env` if given, else the scene's own (`SceneEntry.contacts_per_env`), else
+    the settings' default, so every caller that builds a scene sizes its buffers alike."""
+    if contacts_per_env is None and name in SCENES:
+        contacts_per_env = SCENES.get(name).contacts_per_env
+    if contacts_per_env is not None:
+        fields["contacts_per_env"] = contacts_per_env
+    return PhysicsSettings(**fields)
+
+
 def mirrored(a: str, b: str) -> bool:
     """Whether scenes `a` and `b` differ and one mirrors the other (`SceneEntry.mirrors`)."""
     if a == b or a not in SCENES or b not in SCENES:

@@ -14,15 +14,16 @@ import numpy as np
 import pytest
 from worker_envs import require_worker_envs
 
-from openral_mjx.physics import BACKEND_NAMES, PhysicsSettings
-from openral_mjx.scenes import SCENES, make_scene
+from openral_mjx.physics import BACKEND_NAMES
+from openral_mjx.scenes import SCENES, make_scene, scene_settings
 
 N_ENVS = 2
 STEPS = 3
 # Smallest settings that still build the scene as users get it: one worker process for host
 # scenes (both envs in it), two C threads, a warp buffer sized for this batch.
 HOST_OPTIONS = {"n_workers": 1}
-SETTINGS = {"c": PhysicsSettings(threads=2), "mjx": None, "warp": PhysicsSettings(batch_size=8)}
+# (with the scene's own contact capacity, as `eval` builds it).
+SETTINGS = {"c": {"threads": 2}, "warp": {"batch_size": 8}}
 
 
 def _cases() -> list:
@@ -48,7 +49,8 @@ def test_scene_resets_and_steps(name, backend):
     if backend == "warp":
         pytest.importorskip("warp")
     overrides = HOST_OPTIONS if backend == "host" else {}
-    scene = make_scene(name, overrides, backend=backend, settings=SETTINGS.get(backend))
+    settings = scene_settings(name, **SETTINGS.get(backend, {}))
+    scene = make_scene(name, overrides, backend=backend, settings=settings)
     try:
         scene.prepare(N_ENVS)
         seeds = jnp.arange(N_ENVS, dtype=jnp.int32)

@@ -58,6 +58,9 @@ class PhysicsSettings:
             and constraint capacity); the runner rejects larger per-device batches.
         contacts_per_env: `warp` contact capacity per env (a buffer overflow marks the env
             diverged, never silently wrong).
+        ccd_contacts_per_env: of those, how many may come from convex collision detection
+            (GJK/EPA: meshes, cylinders), whose working buffers are the largest per contact;
+            None: all of them. Lower it to fit bigger batches of mesh-heavy scenes.
         max_devices: use at most this many of the backend's devices (the first ones); None:
             all of them.
     """
@@ -65,16 +68,23 @@ class PhysicsSettings:
     threads: int | None = None
     batch_size: int = 4096
     contacts_per_env: int = 32
+    ccd_contacts_per_env: int | None = None
     max_devices: int | None = None
 
     def __post_init__(self) -> None:
-        for name in ("threads", "max_devices"):
+        for name in ("threads", "max_devices", "ccd_contacts_per_env"):
             value = getattr(self, name)
             if value is not None and value < 1:
                 raise ConfigError(f"{name} must be >= 1, got {value}")
         for name in ("batch_size", "contacts_per_env"):
             if getattr(self, name) < 1:
                 raise ConfigError(f"{name} must be >= 1, got {getattr(self, name)}")
+        ccd = self.ccd_contacts_per_env
+        if ccd is not None and ccd > self.contacts_per_env:
+            raise ConfigError(
+                f"ccd_contacts_per_env must be <= contacts_per_env ({self.contacts_per_env}),"
+                f" got {ccd}"
+            )
 
 
 @struct.dataclass

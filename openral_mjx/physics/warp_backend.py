@@ -71,6 +71,7 @@ class WarpBackend(MjxBackend):
         self._warm = False
         m, s = self.mj_model, self.settings
         self.naconmax = s.contacts_per_env * s.batch_size
+        self.naccdmax = (s.ccd_contacts_per_env or s.contacts_per_env) * s.batch_size
         # Rows per env: a pyramidal friction cone takes 2 (condim - 1) rows per contact (<= 10
         # for condim 6), plus one row per dof for joint limits and one for friction loss.
         self.njmax = 10 * s.contacts_per_env + 2 * m.nv + m.neq * 6
@@ -95,6 +96,7 @@ class WarpBackend(MjxBackend):
             self.mj_model,
             impl="warp",
             naconmax=self.naconmax,
+            naccdmax=self.naccdmax,
             njmax=self.njmax,
             device=self.home_device(),
         )
@@ -167,6 +169,7 @@ class WarpBackend(MjxBackend):
         return {
             **super().describe(),
             "naconmax": self.naconmax,
+            "naccdmax": self.naccdmax,
             "njmax": self.njmax,
             "batch_size": self.settings.batch_size,
         }

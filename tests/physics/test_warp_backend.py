@@ -62,3 +62,13 @@ def test_diverged_env_is_parked_and_spares_its_neighbours(push_warp):
     assert a.metrics["diverged"].tolist() == [True, False]
     assert bool(jnp.isfinite(a.physics.quantities.qpos).all())
     np.testing.assert_array_equal(a.physics.quantities.qpos[1], b.physics.quantities.qpos[1])
+
+
+def test_convex_contact_capacity_is_part_of_the_contact_capacity():
+    """`ccd_contacts_per_env` bounds the GJK/EPA share of the contact buffer, so it can be
+    neither above `contacts_per_env` nor below 1."""
+    assert PhysicsSettings(contacts_per_env=8, ccd_contacts_per_env=8).ccd_contacts_per_env == 8
+    with pytest.raises(ConfigError, match=r"<= contacts_per_env \(8\), got 9"):
+        PhysicsSettings(contacts_per_env=8, ccd_contacts_per_env=9)
+    with pytest.raises(ConfigError, match="ccd_contacts_per_env must be >= 1, got 0"):
+        PhysicsSettings(ccd_contacts_per_env=0)

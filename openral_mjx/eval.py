@@ -33,6 +33,7 @@ from openral_mjx.evaluation.frames import check_frames, record_frames, save_fram
 from openral_mjx.evaluation.partial import Interrupted
 from openral_mjx.evaluation.replay import EpisodeTrace, choose_seeds, trace_episodes
 from openral_mjx.evaluation.run import build_spec_scene, evaluate_spec
+from openral_mjx.evaluation.sequential import PairedRule, paired_rule
 from openral_mjx.evaluation.suite import evaluate_suite, format_tasks, mps_running
 from openral_mjx.evaluation.sweep import parse_sweep, run_sweep
 from openral_mjx.physics import BACKEND_NAMES
@@ -156,6 +157,20 @@ class EvalArgs:
     """Print the success breakdown by episode factor."""
     compare_with: Path | None = None
     """A report of the same scene to compare this run with (paired by seed where shared)."""
+    decide: bool = False
+    """With --compare-with A.json: run this policy (B) on A's seeds in looks of --n-envs and
+    stop at the first look where B is better or worse than A, or within +-margin of it
+    (a group-sequential test with exact error rates); --n-episodes caps it (default: every
+    seed A's report has from --seed)."""
+    margin: float | None = None
+    """--decide: call B equivalent to A once the interval for B - A lies inside +-this (0.05:
+    five points); without it --decide only stops for a difference."""
+    alpha: float = 0.05
+    """--decide: error rate; the test of no difference spends 0.9 alpha, and the interval for
+    B - A covers with probability >= 1 - alpha under the stopping rule."""
+    spending: str = "obrien-fleming"
+    """--decide: how alpha is spent over the looks: obrien-fleming (little early, a cap close
+    to a fixed-size test's) or pocock (more early)."""
     video: int = 0
     """Write MP4s of the first K episodes (re-simulated after the run) to REPORT_videos/."""
     video_failures: int = 0
@@ -201,6 +216,7 @@ class EvalPlan:
     baseline: EvalReport | None
     spec: RunSpec
     resume: EvalReport | SweepReport | None = None
+    decide: PairedRule | None = None
 
     @property
     def command(self) -> str:
@@ -276,9 +292,66 @@ def validate(args: EvalArgs) -> EvalPlan:
                 f"reports are not comparable: scene {baseline.scene!r} ({args.compare_with}) "
                 f"vs {args.scene!r}"
             )
+    decide = _decide_rule(args, baseline)
+    if decide is not None:
+        spec = dataclasses.replace(spec, n_episodes=decide.cap)
     spec = dataclasses.replace(spec, command=_reproduce(args, backend, out))
     resume = _resume_from(args, spec.command) if args.resume else None
-    return EvalPlan(args, backend, options, out, baseline, spec, resume)
+    return EvalPlan(args, backend, options, out, baseline, spec, resume, decide)
+
+
+def _decide_rule(args: EvalArgs, baseline: EvalReport | None) -> PairedRule | None:
+    """`--decide`'s stopping rule against `--compare-with`'s report, checked (None without
+    --decide; its design flags without it are refused, not ignored)."""
+    design_flags = [
+        flag
+        for flag, on in (
+            ("--margin", args.margin is not None),
+            ("--alpha", args.alpha != 0.05),
+            ("--spending", args.spending != "obrien-fleming"),
+        )
+        if on
+    ]
+    if not args.decide:
+        if design_flags:
+            flags = ", ".join(design_flags)
+            raise ConfigError(f"{flags} set the design of --decide: give --decide")
+        return None
+    if baseline is None or args.compare_with is None:
+        raise ConfigError(
+            "--decide runs this policy until it is decided against an earlier report: give "
+            "--compare-with A.json"
+        )
+    extras = [
+        flag
+        for flag, on in (
+            ("--target-halfwidth", args.target_halfwidth is not None),
+            ("--max-episodes", args.max_episodes is not None),
+            ("--suite", args.suite is not None),
+            ("--sweep", args.sweep is not None),
+            ("--resume", args.resume),
+            ("--processes", args.processes != 1),
+        )
+        if on
+    ]
+    if extras:
+        raise ConfigError(
+            f"--decide chooses its own stop (cap: --n-episodes): drop {', '.join(extras)}"
+        )
+    if args.task is not None and baseline.task != args.task:
+        raise ConfigError(
+            f"reports are not comparable: task {baseline.task!r} ({args.compare_with}) vs "
+            f"{args.task!r}"
+        )
+    return paired_rule(
+        baseline,
+        str(args.compare_with),
+        args.seed,
+        args.n_episodes,
+        args.alpha,
+        args.margin,
+        args.spending,
+    )
 
 
 def _resume_from(args: EvalArgs, command: str) -> EvalReport | SweepReport:
@@ -445,6 +518,10 @@ def _reproduce(args: EvalArgs, backend: str, out: Path) -> str:
             argv += [flag, str(value)]
     if args.sweep is not None:
         argv += ["--sweep", args.sweep]
+    if args.decide:
+        argv += ["--compare-with", str(args.compare_with), "--decide"]
+        argv += ["--alpha", str(args.alpha), "--spending", args.spending]
+        argv += [] if args.margin is None else ["--margin", str(args.margin)]
     if args.randomize:
         argv += ["--randomize", *args.randomize]
     if args.opt:
@@ -483,6 +560,11 @@ def build(plan: EvalPlan, owned: contextlib.ExitStack) -> Built:
         randomize=args.randomize if args.sweep is None else (),
     )
     owned.callback(scene.close)
+    if plan.decide is not None and plan.baseline is not None and plan.baseline.task != scene.task:
+        raise ConfigError(
+            f"reports are not comparable: task {plan.baseline.task!r} ({args.compare_with}) vs "
+            f"{scene.task!r}"
+        )
     check_frames(scene, args.frames)
     n_gpus = sum(d.platform == "gpu" for d in scene.backend.devices())
     if plan.backend == "warp" and n_gpus > 1 and processes.rank() is None:
@@ -581,6 +663,7 @@ def execute(
             plan.spec,
             on_chunk=on_chunk,
             resume=plan.resume if isinstance(plan.resume, EvalReport) else None,
+            decide=plan.decide,
         )
     owned.enter_context(evaluation)
     return evaluation
@@ -673,7 +756,9 @@ def show(plan: EvalPlan, written: Written) -> None:
         print(sequential_summary(report))
     if args.breakdown and report.breakdown:
         print(format_breakdown(report.breakdown, report.confidence))
-    if plan.baseline is not None:
+    if report.decision is not None:
+        print(decision_summary(report, plan.baseline))
+    elif plan.baseline is not None:
         rc = compare_reports(
             plan.baseline, report, mirrored=mirrored(plan.baseline.scene, report.scene)
         )
@@ -722,6 +807,45 @@ def sequential_summary(report: EvalReport) -> str:
         f"sequential: stopped after {s.looks} chunk(s) of {s.chunk:,}, {report.n_episodes:,} "
         f"of at most {s.max_episodes:,} episodes; {why}; interval exact under this stopping rule"
     )
+
+
+DECIDED = {
+    "better": "B's success rate is higher than A's",
+    "worse": "B's success rate is lower than A's",
+    "equivalent": "B's success rate is within +-{margin} points of A's",
+    "inconclusive": "no decision by the cap",
+}
+
+
+def decision_summary(report: EvalReport, baseline: EvalReport | None) -> str:
+    """The lines of `--decide`: the verdict, the looks and the interval valid under the rule."""
+    d = report.decision
+    assert d is not None
+    margin = "" if d.margin is None else f"{100 * d.margin:g}"
+    verdict = DECIDED[d.decision].format(margin=margin)
+    a = f"A: {d.baseline} ({d.baseline_policy})" + (
+        f", {baseline.success_rate:.1%} over its {baseline.n_episodes:,} seeds"
+        if baseline is not None
+        else ""
+    )
+    lines = [
+        a,
+        f"decide: {verdict}; stopped at look {len(d.looks)} of {-(-d.cap // d.chunk)}, "
+        f"{report.n_episodes:,} of at most {d.cap:,} seeds",
+        "  look  seeds  only A  only B  stop if only B <=  or >=",
+    ]
+    for i, look in enumerate(d.looks, 1):
+        lines.append(
+            f"  {i:>4}  {look.n:>5,}  {look.only_a:>6}  {look.only_b:>6}  {look.lower:>16}  "
+            f"{look.upper:>5}"
+        )
+    level = f"{100 * (1 - d.alpha):g}%"
+    lines.append(
+        f"B - A = {100 * d.difference:+.1f} points, {level} repeated CI [{100 * d.ci_low:+.1f}, "
+        f"{100 * d.ci_high:+.1f}] (valid under the stopping rule)"
+    )
+    lines.append(f"design: {d.rule}")
+    return "\n".join(lines)
 
 
 def _scene_listing(name: str) -> list[str]:

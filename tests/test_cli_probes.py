@@ -71,6 +71,62 @@ EVAL = [
     (["--factor-bins", "x"], "'x'"),
     # a flag a suite cannot honour is refused, never recorded in the command and ignored
     (["--scene", "metaworld_mjx", "--suite", "mt10", "--factor-bins", "3"], "--factor-bins"),
+    # --decide (issue 40): its design flags, its baseline and what it excludes
+    (["--decide"], "--compare-with"),
+    (["--margin", "0.05"], "--margin"),
+    (
+        ["--scene", "so101_box", "--compare-with", "{in}/good.json", "--decide", "--margin", "1.5"],
+        "1.5",
+    ),
+    (
+        ["--scene", "so101_box", "--compare-with", "{in}/good.json", "--decide", "--alpha", "0"],
+        "got 0",
+    ),
+    (
+        ["--scene", "so101_box", "--compare-with", "{in}/good.json", "--decide", "--spending", "x"],
+        "'x'",
+    ),
+    (["--compare-with", "{in}/good.json", "--decide"], "'so101_box'"),
+    (
+        [
+            "--scene",
+            "so101_box",
+            "--compare-with",
+            "{in}/good.json",
+            "--decide",
+            "--n-episodes",
+            "300",
+        ],
+        "--n-episodes 300",
+    ),
+    (
+        ["--scene", "so101_box", "--compare-with", "{in}/good.json", "--decide", "--seed", "256"],
+        "seed 256",
+    ),
+    (
+        [
+            "--scene",
+            "so101_box",
+            "--compare-with",
+            "{in}/good.json",
+            "--decide",
+            "--target-halfwidth",
+            "0.1",
+        ],
+        "--target-halfwidth",
+    ),
+    (
+        [
+            "--scene",
+            "so101_box",
+            "--compare-with",
+            "{in}/good.json",
+            "--decide",
+            "--task",
+            "nosuch",
+        ],
+        "'nosuch'",
+    ),
 ]
 COMPARE = [
     (["{in}/good.json", "{in}/good.json"], "same file"),

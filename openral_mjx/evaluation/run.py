@@ -19,7 +19,7 @@ from openral_mjx.core.options import to_dict
 from openral_mjx.evaluation.episodes import episode_results
 from openral_mjx.evaluation.partial import Interrupted, add_warnings
 from openral_mjx.evaluation.provenance import device_description, package_versions
-from openral_mjx.evaluation.sequential import SequentialRule
+from openral_mjx.evaluation.sequential import PairedRule, SequentialRule
 from openral_mjx.evaluation.spec import RunSpec
 from openral_mjx.physics.mj_warnings import count_warnings
 from openral_mjx.policies import Policy, make_policy
@@ -190,6 +190,7 @@ def evaluate_spec(
     on_chunk: Callable[[int, int, int], None] | None = None,
     randomize: Sequence[str] = (),
     resume: EvalReport | None = None,
+    decide: PairedRule | None = None,
 ) -> Evaluation:
     """`run_evaluation` for a checked `RunSpec`: `scene` (a name: built from `options` as the
     spec says, and closed with the `Evaluation`) run under `policy`.
@@ -198,8 +199,16 @@ def evaluate_spec(
     `Interrupted` with the report of the chunks of seeds every one of which finished (a
     prefix), marked partial; given that report as `resume`, the run goes on from the seed
     after them, its looks where the uninterrupted run's fall, and returns the whole run's
-    report (its `arrays` and `timing` are those of the seeds run here)."""
+    report (its `arrays` and `timing` are those of the seeds run here).
+
+    `decide` (a `PairedRule` over the spec's `n_episodes` seeds) stops the run at the first
+    look that decides B against an earlier report; the report's `decision` says how."""
     rule, n_episodes = spec.stopping_rule(), spec.episodes
+    if decide is not None and (rule is not None or resume is not None or n_episodes != decide.cap):
+        raise ConfigError(
+            "a paired decision runs its own looks over its cap of seeds: give n_episodes = its "
+            "cap, and no target_halfwidth or resume"
+        )
     seed, step_rewards = spec.seed, spec.step_rewards
     earlier = _resumed(resume, rule)
     owned = contextlib.ExitStack()
@@ -233,6 +242,8 @@ def evaluate_spec(
         def until(arrays: dict[str, Any]) -> bool:
             """The stopping rule over every seed so far (a resumed run's earlier ones first),
             keeping the finished prefix for a partial report."""
+            if decide is not None:
+                return decide(arrays)
             assert rule is not None
             seen["arrays"] = arrays
             return rule({"success": np.concatenate([before, arrays["success"]])})
@@ -265,7 +276,7 @@ def evaluate_spec(
                 n_envs=spec.n_envs,
                 max_steps=steps,
                 on_chunk=on_chunk,
-                until=None if rule is None else until,
+                until=None if rule is None and decide is None else until,
                 record=("rewards",) if step_rewards else (),
                 batching=batching,
                 refill_every=refill_every,
@@ -288,6 +299,8 @@ def evaluate_spec(
         n_new = len(arrays["success"])
         episodes = episodes_of(arrays, requested[len(earlier) : len(earlier) + n_new], timing)
         report = assemble(episodes, timing)
+        if decide is not None:
+            report.decision = decide.info()
         resources = owned.pop_all()  # handed to the Evaluation
     return Evaluation(report, scene, pol, params, requested, arrays, timing, resources)
 

@@ -1,13 +1,18 @@
-"""Sequential estimation inside an evaluation: the runner's stopping rule for a target
-interval half-width, built on the exact group-sequential design of `stats.sequential`."""
+"""Sequential runs inside an evaluation: the runner's stopping rules for a target interval
+half-width (`SequentialRule`, on the exact group-sequential design of `stats.sequential`) and
+for a paired comparison with an earlier report (`PairedRule`, on `stats.paired_sequential`)."""
 
 from __future__ import annotations
 
 from collections.abc import Mapping
 from typing import Any
 
+import numpy as np
+
 from openral_mjx.core.errors import ConfigError
+from openral_mjx.report import DecisionInfo, DecisionLook, EvalReport
 from openral_mjx.runner import check_counts
+from openral_mjx.stats.paired_sequential import Look, PairedDecisionDesign
 from openral_mjx.stats.sequential import SequentialDesign, sufficient_episodes
 
 
@@ -63,3 +68,128 @@ def sequential_rule(
         raise ConfigError(f"max_episodes must be a positive integer, got {max_episodes}")
     check_counts(n_envs, 1, 1)
     return SequentialRule(target, max_episodes or sufficient_episodes(target))
+
+
+class PairedRule:
+    """The runner's `until` for `--decide`: B's outcomes on the finished prefix of seeds
+    against A's on the same seeds (`baseline[i]`: A's outcome on the run's i-th seed), looked
+    at after every chunk of the runner's, stopped at the first look that decides.
+
+    As `SequentialRule`, the design is fixed at the first look, when the runner's chunk size
+    is known and no outcome has been seen. Only the first `n` seeds, all finished, enter a
+    look (the runner's prefix rule), so a seed that happened to finish early never does.
+    """
+
+    def __init__(
+        self,
+        baseline: np.ndarray,
+        label: str,
+        baseline_policy: str,
+        alpha: float = 0.05,
+        margin: float | None = None,
+        spending: str = "obrien-fleming",
+    ) -> None:
+        self.baseline = np.asarray(baseline, bool)
+        self.label, self.baseline_policy = label, baseline_policy
+        self.alpha, self.margin, self.spending = alpha, margin, spending
+        self.looks: list[Look] = []
+        self._design: PairedDecisionDesign | None = None
+        # checked now, before anything runs (the chunk is a placeholder)
+        PairedDecisionDesign.in_chunks(1, self.cap, alpha, margin, spending)
+
+    @property
+    def cap(self) -> int:
+        return int(self.baseline.size)
+
+    @property
+    def design(self) -> PairedDecisionDesign:
+        if self._design is None:
+            raise RuntimeError("the paired design is fixed at the first look")
+        return self._design
+
+    def __call__(self, arrays: Mapping[str, Any]) -> bool:
+        b = np.asarray(arrays["success"], bool)
+        n = b.size
+        if self._design is None:
+            self._design = PairedDecisionDesign.in_chunks(
+                n, self.cap, self.alpha, self.margin, self.spending
+            )
+        k = self._design.looks.index(n)
+        a = self.baseline[:n]
+        ns = self._design.looks[: k + 1]
+        only_a = [int((a[:m] & ~b[:m]).sum()) for m in ns]
+        only_b = [int((~a[:m] & b[:m]).sum()) for m in ns]
+        look = self._design.look(k, only_a, only_b)
+        self.looks = [*self.looks[:k], look]
+        return look.decision is not None
+
+    def info(self) -> DecisionInfo:
+        """The report's `decision` block (after the run stopped)."""
+        last = self.looks[-1]
+        design = self.design
+        assert last.decision is not None and last.ci_low is not None and last.ci_high is not None
+        return DecisionInfo(
+            baseline=self.label,
+            baseline_policy=self.baseline_policy,
+            rule=design.describe(),
+            alpha=design.alpha,
+            margin=design.margin,
+            spending=design.spending,
+            chunk=design.looks[0],
+            cap=design.cap,
+            looks=[DecisionLook(x.n, x.only_a, x.only_b, x.lower, x.upper) for x in self.looks],
+            decision=last.decision,
+            difference=(last.only_b - last.only_a) / last.n,
+            ci_low=last.ci_low,
+            ci_high=last.ci_high,
+        )
+
+
+def paired_rule(
+    baseline: EvalReport,
+    label: str,
+    seed: int,
+    n_episodes: int | None,
+    alpha: float,
+    margin: float | None,
+    spending: str,
+) -> PairedRule:
+    """The `--decide` rule against report `baseline` (read from `label`): A's outcomes on
+    seeds `seed`, `seed + 1`, ... up to the cap, `n_episodes` or (default) as far as A's
+    report has every seed. `ConfigError` if A lacks a seed the cap needs."""
+    outcomes = {int(e.metadata["seed"]): bool(e.success) for e in baseline.episodes}
+    have = 0
+    while seed + have in outcomes:
+        have += 1
+    if have == 0:
+        raise ConfigError(
+            f"--decide: report {label!r} has no episode of seed {seed} (--seed); it has seeds "
+            f"{_seed_span(outcomes)}: give --seed inside them"
+        )
+    cap = have if n_episodes is None else n_episodes
+    if cap > have:
+        raise ConfigError(
+            f"--decide: --n-episodes {cap} needs A's outcomes on seeds {seed}..{seed + cap - 1}, "
+            f"but report {label!r} has seeds {_seed_span(outcomes)}: give --n-episodes <= "
+            f"{have}, or rerun A on {cap} seeds"
+        )
+    if cap < 1:
+        raise ConfigError(f"--n-episodes must be a positive integer, got {cap}")
+    return PairedRule(
+        np.array([outcomes[seed + i] for i in range(cap)]),
+        label,
+        baseline.policy,
+        alpha,
+        margin,
+        spending,
+    )
+
+
+def _seed_span(outcomes: Mapping[int, bool]) -> str:
+    """E.g. "0..511" or "0..99 and 12 others": A's seeds, for an error message."""
+    seeds = sorted(outcomes)
+    run = 1
+    while run < len(seeds) and seeds[run] == seeds[0] + run:
+        run += 1
+    rest = f" and {len(seeds) - run} others" if run < len(seeds) else ""
+    return f"{seeds[0]}..{seeds[run - 1]}{rest}"

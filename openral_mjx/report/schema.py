@@ -27,18 +27,21 @@ from openral_mjx.report.validation import (
     validate_json,
 )
 
-SCHEMA_VERSION = "openral_mjx.eval_report/6"
+SCHEMA_VERSION = "openral_mjx.eval_report/7"
 # /2 has the same fields as /3; /3 only widened what the latency fields and metadata may hold
 # (a torch policy's own latencies, a host worker's error), so a /2 report reads as it was.
 # /4 added `live_env_steps_per_s` (continuous batching), None when read from /2 or /3.
 # /5 added `instruction` (the report's and each per-task row's), None when read from /2../4.
 # /6 added `partial` (an interrupted run's report of what finished; None: complete) and
 # `mujoco_warnings` (MuJoCo's warnings by kind), None and {} when read from /2../5.
+# /7 added `decision` (a sequential paired comparison's design, looks and verdict), None when
+# read from /2../6.
 READABLE_VERSIONS = (
     "openral_mjx.eval_report/2",
     "openral_mjx.eval_report/3",
     "openral_mjx.eval_report/4",
     "openral_mjx.eval_report/5",
+    "openral_mjx.eval_report/6",
     SCHEMA_VERSION,
 )
 
@@ -144,6 +147,48 @@ class SequentialInfo:
 
 
 @dataclasses.dataclass
+class DecisionLook:
+    """One look of a sequential paired comparison (`eval --decide`): over the first `n` seeds,
+    `only_a` / `only_b` the seeds only A / only B succeeded on; the test of no difference stops
+    with "better" where `only_b >= upper`, "worse" where `only_b <= lower`."""
+
+    __pydantic_config__: ClassVar[ConfigDict] = STRICT
+
+    n: Count
+    only_a: Count
+    only_b: Count
+    lower: int
+    upper: int
+
+
+@dataclasses.dataclass
+class DecisionInfo:
+    """How a sequential paired comparison (`eval --compare-with A.json --decide`) ran and what
+    it decided: B against `baseline` (A's report, policy `baseline_policy`) on the same seeds,
+    looks after every `chunk` seeds up to `cap`, under `rule` (the design in words, with
+    `alpha`, equivalence `margin` and `spending`). `decision`: "better", "worse",
+    "equivalent" (B - A within +-margin), "inconclusive" (the cap came first).
+    [`ci_low`, `ci_high`]: the repeated interval for rate_B - rate_A at the stop, valid under
+    the stopping rule (coverage >= 1 - alpha); `difference` the observed B - A."""
+
+    __pydantic_config__: ClassVar[ConfigDict] = STRICT
+
+    baseline: str
+    baseline_policy: str
+    rule: str
+    alpha: float
+    margin: float | None
+    spending: str
+    chunk: Count
+    cap: Count
+    looks: list[DecisionLook]
+    decision: str
+    difference: float
+    ci_low: float
+    ci_high: float
+
+
+@dataclasses.dataclass
 class PartialInfo:
     """Why a report holds only part of its run, and which part (`eval --resume` finishes it).
 
@@ -222,6 +267,7 @@ class EvalReport:
     instruction: str | None = None
     partial: PartialInfo | None = None
     mujoco_warnings: dict[str, int] = dataclasses.field(default_factory=dict)
+    decision: DecisionInfo | None = None
     schema_version: str = SCHEMA_VERSION
 
     def summary(self) -> str:

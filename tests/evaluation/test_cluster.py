@@ -30,6 +30,7 @@ from worker_envs import require_worker_envs
 from openral_mjx.core.errors import ConfigError
 from openral_mjx.evaluation import RunSpec, cluster
 from openral_mjx.evaluation import suite as suite_module
+from openral_mjx.evaluation.partial import Interrupted
 from openral_mjx.report import EvalReport, load_report
 
 TASKS = ["reach-v3", "pick-place-v3"]
@@ -199,3 +200,27 @@ def test_killed_worker_runs_its_task_again(two_nodes, local_run, monkeypatch):
     assert outcomes(report) == outcomes(local_run)
     assert report.cluster is not None and report.cluster.retries == 1
     assert sorted(p.attempts for p in report.cluster.parts) == [1, 2]
+
+
+@pytest.mark.cluster
+def test_interrupt_cancels_the_running_tasks(two_nodes, local_run, monkeypatch):
+    """Ctrl-C as the first task ends: the other task's worker is ended, not waited for, and
+    what finished in the suite's order is kept as a partial report."""
+    monkeypatch.setattr(suite_module, "scene_suite", lambda scene, suite: TASKS)
+
+    def interrupt(done: int, total: int, task: str) -> None:
+        raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt) as stop:
+        suite_module.evaluate_suite(
+            *ARGS, RunSpec(backend="c", threads=1, **RUN), cluster=two_nodes, on_task=interrupt
+        )
+    deadline = time.monotonic() + 10
+    while _running_parts() and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert _running_parts() == set()
+    if isinstance(stop.value, Interrupted):  # the suite's first task was the one that ended
+        kept = stop.value.report
+        assert kept.partial is not None and kept.partial.finished == TASKS[:1]
+        assert outcomes(kept) == outcomes(local_run)[: RUN["n_episodes"]]
+        assert kept.cluster is not None and [p.part for p in kept.cluster.parts] == TASKS[:1]

@@ -168,7 +168,9 @@ def fan_out(
                     pending[remote.remote(fn, parts[i][1])] = i
                     continue
                 except ray.exceptions.RayTaskError as e:
-                    raise e.cause from e  # the part's own error (a ConfigError stays one)
+                    # the part's own error, as itself (a ConfigError stays one) where Ray
+                    # could send it back
+                    raise (e.cause if isinstance(e.cause, BaseException) else e) from e
                 yield i, result, PartPlacement(parts[i][0], node_id, node_ip, attempts[i])
     finally:
         for ref in pending:

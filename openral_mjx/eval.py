@@ -28,7 +28,7 @@ from openral_mjx.core.errors import ConfigError
 from openral_mjx.core.files import check_writable
 from openral_mjx.core.interrupts import EXIT_CODES, signals_raise
 from openral_mjx.core.options import load_yaml, parse_overrides
-from openral_mjx.evaluation import Evaluation, RunSpec
+from openral_mjx.evaluation import Evaluation, RunSpec, cluster
 from openral_mjx.evaluation.frames import check_frames, record_frames, save_frames
 from openral_mjx.evaluation.partial import Interrupted
 from openral_mjx.evaluation.replay import EpisodeTrace, choose_seeds, trace_episodes
@@ -148,6 +148,12 @@ class EvalArgs:
     """With --suite: run this many tasks at once, one process each. On one GPU it pays only
     under NVIDIA's MPS daemon (nvidia-cuda-mps-control -d): 16 MetaWorld tasks at 1,000 envs
     ran 3.6x faster together than one at a time with MPS, 0.94x without (8 tasks)."""
+    cluster: str | None = None
+    """With --suite: run its tasks as Ray tasks on the cluster at this address (auto: the one
+    `ray start` runs here; local: one started for this run; HOST:PORT or ray://HOST:PORT),
+    each on a GPU where the cluster has GPUs and the backend uses them, else on --threads CPUs
+    (default 1). Per seed the same episodes as a local run; the report says where each task
+    ran. Needs the ray extra (docs/cluster.md)."""
     out: Path | None = None
     """Report path (default: results/SCENE_POLICY_TIMESTAMP.json)."""
     factor_bins: int = 5
@@ -276,6 +282,8 @@ def validate(args: EvalArgs) -> EvalPlan:
         spec.for_suite()
     elif args.task_processes != 1:
         raise ConfigError("--task-processes runs the tasks of a --suite at once: give --suite")
+    if args.cluster is not None:
+        _check_cluster(args)
     _check_randomize(args, want_video)
     policy = scripted_policy(args.scene, args.policy)
     if policy != args.policy:
@@ -490,6 +498,19 @@ def _check_suite(args: EvalArgs, want_video: bool) -> None:
     scene_suite(args.scene, args.suite)
 
 
+def _check_cluster(args: EvalArgs) -> None:
+    """`--cluster` fans a suite's tasks out over Ray: it needs --suite and Ray, a valid address,
+    and no local fan-out beside it."""
+    if args.suite is None:
+        raise ConfigError("--cluster runs the tasks of a --suite on Ray workers: give --suite")
+    if args.task_processes != 1 or args.processes != 1:
+        raise ConfigError(
+            "--cluster runs a suite's tasks on Ray workers: drop --task-processes/--processes"
+        )
+    cluster.check_address(args.cluster)
+    cluster.require_ray()
+
+
 def _reproduce(args: EvalArgs, backend: str, out: Path) -> str:
     """The command line that reproduces this run (the report's `command`)."""
     argv = ["--scene", args.scene, "--policy", args.policy, "--backend", backend]
@@ -509,6 +530,7 @@ def _reproduce(args: EvalArgs, backend: str, out: Path) -> str:
         ("--devices", args.devices),
         ("--processes", args.processes if args.processes != 1 else None),
         ("--task-processes", args.task_processes if args.task_processes != 1 else None),
+        ("--cluster", args.cluster),
         ("--factor-bins", args.factor_bins if args.factor_bins != 5 else None),
         ("--frames", args.frames or None),
         ("--batching", args.batching if args.batching != "auto" else None),
@@ -610,7 +632,7 @@ def execute(
             progress.update(bar, description=f"episodes{rate}", completed=done, total=total)
 
         if args.suite is not None:
-            together = args.task_processes > 1
+            together = args.task_processes > 1 or args.cluster is not None
 
             def on_task(i: int, n: int, name: str) -> None:
                 if together:  # called as each task ends, `i` of `n` done
@@ -636,6 +658,7 @@ def execute(
                 on_task=on_task,
                 on_chunk=lambda done, total, _: progress.update(bar, completed=done, total=total),
                 resume=plan.resume if isinstance(plan.resume, EvalReport) else None,
+                cluster=args.cluster,
             )
         assert built.scene is not None
         if args.sweep is not None:
@@ -746,6 +769,8 @@ def show(plan: EvalPlan, written: Written) -> None:
     print(report.summary())
     if args.suite is not None:
         print(format_tasks(report))
+    if report.cluster is not None:
+        print(report.cluster.summary())
     if report.n_envs < min(args.n_envs, report.n_episodes):
         print(
             f"note: ran {report.n_envs} envs at a time: --n-envs {args.n_envs} would not fit "

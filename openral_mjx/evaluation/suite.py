@@ -11,6 +11,10 @@ process). A task's episodes do not depend on which process ran it or beside what
 this pays only under NVIDIA's MPS daemon (`nvidia-cuda-mps-control -d`): without it the
 processes take turns on the GPU (8 MetaWorld tasks at 1,000 envs: 0.94x one at a time; with
 MPS 2.6x, 16 tasks 3.6x; BENCHMARKS.md).
+
+`cluster` sends the tasks to a Ray cluster instead (`evaluation.cluster`), each through the
+same per-task entry point as a task process, so per seed the report is a local run's; it
+records where each task ran and how often one was started again after its worker died.
 """
 
 from __future__ import annotations
@@ -27,11 +31,12 @@ from typing import Any
 
 from openral_mjx.core.errors import ConfigError
 from openral_mjx.core.interrupts import stop_signal
+from openral_mjx.evaluation import cluster
 from openral_mjx.evaluation.partial import Interrupted, add_warnings, partial_info
 from openral_mjx.evaluation.run import build_spec_scene, evaluate_spec
 from openral_mjx.evaluation.spec import RunSpec
 from openral_mjx.policies import Policy, make_policy
-from openral_mjx.report import EvalReport, PartialInfo
+from openral_mjx.report import ClusterInfo, EvalReport, PartialInfo, PartPlacement
 from openral_mjx.runner.compile_cache import enable_compilation_cache
 from openral_mjx.scenes import scene_suite
 from openral_mjx.stats import wilson_interval
@@ -58,6 +63,7 @@ def evaluate_suite(
     on_task: Callable[[int, int, str], None] | None = None,
     on_chunk: Callable[[int, int, int], None] | None = None,
     resume: EvalReport | None = None,
+    cluster: str | None = None,
 ) -> EvalReport:
     """Run `policy` on every task of `suite` as `spec` says (`RunSpec.for_suite`: a setting a
     suite cannot honour is refused), on its backend (`host` for a host scene; `mjx`, `warp`
@@ -72,16 +78,27 @@ def evaluate_suite(
 
     With several processes the report's `run_s` is the wall time of all the tasks together
     (their builds and compiles overlap their runs, so they are in it) and `compile_s` the sum
-    of the tasks' own compile times."""
+    of the tasks' own compile times.
+
+    With `cluster` (a Ray address, see `evaluation.cluster.check_address`) the tasks run on
+    that cluster, all at once as its resources allow, timed as with several processes; the
+    report's `cluster` says where each ran and counts the retries."""
     spec = spec.for_suite()
     if task_processes < 1:
         raise ConfigError(f"task_processes must be >= 1, got {task_processes}")
+    if cluster is not None and task_processes > 1:
+        raise ConfigError("--cluster runs a suite's tasks on Ray workers: drop --task-processes")
     tasks = scene_suite(scene, suite)
     earlier = _resumed(resume, suite, tasks)
     todo = tasks[len(earlier.partial.finished) if earlier and earlier.partial else 0 :]
     reports: list[EvalReport] = []
+    ray_run = None if cluster is None else _RayRun(cluster, earlier)
     try:
-        if task_processes > 1:
+        if ray_run is not None:
+            _suite_on_cluster(
+                scene, policy, todo, options, spec, compile_cache, on_task, reports, ray_run
+            )
+        elif task_processes > 1:
             _suite_in_processes(
                 scene, policy, todo, options, spec, task_processes, compile_cache, on_task, reports
             )
@@ -94,10 +111,12 @@ def evaluate_suite(
         finished = tasks[: len(tasks) - len(todo) + len(reports)]
         partial = partial_info(signal, "tasks", finished, len(tasks))
         blocks = [*([earlier] if earlier else []), *reports]
-        raise Interrupted(
-            signal, merge_reports(blocks, suite, policy, spec.command, partial)
-        ) from e
-    return merge_reports([*([earlier] if earlier else []), *reports], suite, policy, spec.command)
+        merged = merge_reports(blocks, suite, policy, spec.command, partial)
+        if ray_run is not None:
+            merged = dataclasses.replace(merged, cluster=ray_run.info())
+        raise Interrupted(signal, merged) from e
+    merged = merge_reports([*([earlier] if earlier else []), *reports], suite, policy, spec.command)
+    return merged if ray_run is None else dataclasses.replace(merged, cluster=ray_run.info())
 
 
 def _resumed(resume: EvalReport | None, suite: str, tasks: list[str]) -> EvalReport | None:
@@ -154,6 +173,22 @@ def _start_task_process(compile_cache: Path | None) -> None:
         enable_compilation_cache(compile_cache)
 
 
+@dataclasses.dataclass
+class _RayRun:
+    """A suite's run on a Ray cluster so far: the address, its live nodes, where each task
+    in the report ran (a resumed cluster run's tasks first)."""
+
+    address: str
+    earlier: EvalReport | None
+    nodes: int = 0
+    placements: list[PartPlacement] = dataclasses.field(default_factory=list)
+
+    def info(self) -> ClusterInfo:
+        before = self.earlier.cluster if self.earlier is not None else None
+        parts = [*(before.parts if before is not None else []), *self.placements]
+        return cluster.cluster_info(self.address, self.nodes, parts)
+
+
 def _task_report(
     scene: str,
     task: str,
@@ -170,6 +205,55 @@ def _task_report(
                 return evaluation.report
         finally:
             _close(pol)
+
+
+def cluster_task_report(
+    scene: str,
+    task: str,
+    policy: str,
+    options: Mapping[str, Any],
+    spec: RunSpec,
+    compile_cache: bool,
+) -> EvalReport:
+    """A Ray worker's part of a suite: one task's report, as a task process makes it (with
+    the node's own default compilation cache, if `compile_cache`)."""
+    if compile_cache:
+        enable_compilation_cache()
+    return _task_report(scene, task, policy, options, spec)
+
+
+def _suite_on_cluster(
+    scene: str,
+    policy: str,
+    tasks: list[str],
+    options: Mapping[str, Any] | None,
+    spec: RunSpec,
+    compile_cache: Path | None,
+    on_task: Callable[[int, int, str], None] | None,
+    reports: list[EvalReport],
+    ray_run: _RayRun,
+) -> None:
+    """The `tasks` as Ray tasks on the cluster at `ray_run.address`, as many at once as it
+    has room for; `reports` (and `ray_run.placements`) get the first tasks' in the suite's
+    order as every one before has ended, as with processes; timed as with processes."""
+    start = time.perf_counter()
+    with cluster.connected(ray_run.address) as ray:
+        ray_run.nodes = cluster.live_nodes(ray)
+        resources = cluster.part_resources(ray, spec.backend, spec.threads)
+        cache = compile_cache is not None
+        parts = [(t, (scene, t, policy, dict(options or {}), spec, cache)) for t in tasks]
+        ended: dict[int, tuple[EvalReport, PartPlacement]] = {}
+        runs = cluster.fan_out(ray, cluster_task_report, parts, resources)
+        with contextlib.closing(runs):  # an interrupt cancels the running tasks
+            for i, report, placement in runs:
+                ended[i] = (report, placement)
+                while len(reports) in ended:
+                    done, where = ended.pop(len(reports))
+                    reports.append(done)
+                    ray_run.placements.append(where)
+                if on_task is not None:
+                    on_task(len(ended) + len(reports), len(tasks), tasks[i])
+    _spread_wall_time(reports, time.perf_counter() - start, policy)
 
 
 def stop_pool(pool: concurrent.futures.ProcessPoolExecutor) -> None:
@@ -225,7 +309,14 @@ def _suite_in_processes(
         stop_pool(pool)
         raise
     pool.shutdown()
-    wall = time.perf_counter() - start
+    _spread_wall_time(reports, time.perf_counter() - start, policy)
+
+
+def _spread_wall_time(reports: list[EvalReport], wall: float, policy: str) -> None:
+    """Make `reports` (tasks run at once) share `wall` seconds, each by its share of their
+    summed run time, so their merge's throughput is the wall time's."""
+    if not reports:
+        return
     merged = merge_reports(reports, "", policy, "")
     steps = merged.env_steps_per_s * merged.run_s
     for j, r in enumerate(reports):  # one wall time for all: spread over the tasks by share

@@ -34,8 +34,8 @@ SCHEMA_VERSION = "openral_mjx.eval_report/7"
 # /5 added `instruction` (the report's and each per-task row's), None when read from /2../4.
 # /6 added `partial` (an interrupted run's report of what finished; None: complete) and
 # `mujoco_warnings` (MuJoCo's warnings by kind), None and {} when read from /2../5.
-# /7 added `decision` (a sequential paired comparison's design, looks and verdict), None when
-# read from /2../6.
+# /7 added `decision` (a sequential paired comparison's design, looks and verdict) and
+# `cluster` (where a suite's tasks ran on a Ray cluster), None when read from /2../6.
 READABLE_VERSIONS = (
     "openral_mjx.eval_report/2",
     "openral_mjx.eval_report/3",
@@ -216,6 +216,43 @@ class PartialInfo:
 
 
 @dataclasses.dataclass
+class PartPlacement:
+    """Where one part of a cluster run (a suite's task) ran: the Ray node that finished it
+    (`node_id`, `node_ip`) and `attempts`, 1 when its first run finished; each worker or node
+    that died under it added one (the part ran again from the start, elsewhere or there)."""
+
+    __pydantic_config__: ClassVar[ConfigDict] = STRICT
+
+    part: str
+    node_id: str
+    node_ip: str
+    attempts: Count
+
+
+@dataclasses.dataclass
+class ClusterInfo:
+    """A run fanned out over a Ray cluster (`eval --cluster`): the `address` given, the
+    `nodes` alive when it started, the `retries` (attempts beyond each part's first) and
+    where each part ran, in the run's order. Per seed the episodes are a local run's."""
+
+    __pydantic_config__: ClassVar[ConfigDict] = STRICT
+
+    address: str
+    nodes: Count
+    retries: Count
+    parts: list[PartPlacement]
+
+    def summary(self) -> str:
+        """E.g. "cluster auto: 10 parts on 2 of 2 nodes (127.0.0.1), 1 retry"."""
+        ips = sorted({p.node_ip for p in self.parts})
+        used = len({p.node_id for p in self.parts})
+        return (
+            f"cluster {self.address}: {len(self.parts)} parts on {used} of {self.nodes} "
+            f"nodes ({', '.join(ips)}), {self.retries} retr{'y' if self.retries == 1 else 'ies'}"
+        )
+
+
+@dataclasses.dataclass
 class EvalReport:
     """Aggregate of one evaluation run; `episodes` holds every `EpisodeResult`.
 
@@ -229,6 +266,7 @@ class EvalReport:
     `partial` is None for a complete run, else what an interrupted one kept (`PartialInfo`);
     `mujoco_warnings` counts MuJoCo C's warnings during the run by kind (e.g. "BADQACC"): the
     messages MuJoCo would have printed (see `physics.mj_warnings`), counted instead.
+    `cluster` is None for a run on this machine, else where its parts ran (`ClusterInfo`).
     """
 
     __pydantic_config__: ClassVar[ConfigDict] = STRICT
@@ -268,6 +306,7 @@ class EvalReport:
     partial: PartialInfo | None = None
     mujoco_warnings: dict[str, int] = dataclasses.field(default_factory=dict)
     decision: DecisionInfo | None = None
+    cluster: ClusterInfo | None = None
     schema_version: str = SCHEMA_VERSION
 
     def summary(self) -> str:

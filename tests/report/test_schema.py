@@ -1,5 +1,6 @@
 """Report JSON: round trip through a saved file, strict loading, compact layout, atomic writes."""
 
+import dataclasses
 import json
 import re
 from pathlib import Path
@@ -13,7 +14,9 @@ from openral_mjx.evaluation import evaluate
 from openral_mjx.report import (
     READABLE_VERSIONS,
     SCHEMA_VERSION,
+    ClusterInfo,
     EvalReport,
+    PartPlacement,
     load_report,
     save_report,
 )
@@ -41,6 +44,26 @@ def test_round_trip(report, tmp_path):
     assert loaded == report
     assert json.loads(path.read_text())["schema_version"] == SCHEMA_VERSION
     assert [p.name for p in tmp_path.iterdir()] == ["r.json"]  # no temp file left
+
+
+def test_cluster_record_round_trips(report, tmp_path):
+    """Where a cluster run's parts ran (schema /7) is saved, read back and validated; a report
+    without it (a local run, or one of /6) has None."""
+    where = [PartPlacement("a", "n1", "10.0.0.1", 1), PartPlacement("b", "n2", "10.0.0.2", 2)]
+    clustered = dataclasses.replace(report, cluster=ClusterInfo("auto", 2, 1, where))
+    save_report(clustered, tmp_path / "r.json")
+    assert load_report(tmp_path / "r.json").cluster == clustered.cluster
+    assert clustered.cluster.summary() == (
+        "cluster auto: 2 parts on 2 of 2 nodes (10.0.0.1, 10.0.0.2), 1 retry"
+    )
+    old = report.to_dict()
+    del old["cluster"]
+    old["schema_version"] = "openral_mjx.eval_report/6"
+    assert EvalReport.from_dict(old).cluster is None
+    bad = clustered.to_dict()
+    bad["cluster"]["parts"][0]["attempts"] = -1
+    with pytest.raises(ConfigError, match=r"cluster.parts\[0\].attempts"):
+        EvalReport.from_dict(bad)
 
 
 def test_report_fields(report):

@@ -1,0 +1,226 @@
+"""`eval --cluster`: a suite's tasks over a Ray cluster of two nodes on 127.0.0.1.
+
+The `cluster` tests start the cluster once for the module (`ray start --head`, then a second
+`ray start --address`, one CPU each, token authentication off as two nodes on one machine
+need) and `ray stop` it at the end, also on failure. The suite is two tasks of the MetaWorld
+mirror on `c` with MetaWorld's expert, a few seeds each: split over both nodes, and with one
+worker killed mid-run, it gives per seed what a local run gives. Without Ray they are skipped
+(`pip install 'openral_mjx[ray]'`), on CI (`CI` set) they fail. The checks of the flag that
+need no cluster run in the default tier.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import shutil
+import signal
+import socket
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import pytest
+from cli_runs import run_cli
+from worker_envs import require_worker_envs
+
+from openral_mjx.core.errors import ConfigError
+from openral_mjx.evaluation import RunSpec, cluster
+from openral_mjx.evaluation import suite as suite_module
+from openral_mjx.evaluation.partial import Interrupted
+from openral_mjx.report import EvalReport, load_report
+
+TASKS = ["reach-v3", "pick-place-v3"]
+RUN = {"n_envs": 2, "n_episodes": 2, "max_steps": 60}
+ARGS = ("metaworld_mjx", "mt10", "metaworld-expert")
+PART_TITLE = b"ray::_run_part"  # a Ray worker's process title while it runs a part
+# Two nodes on one machine: no token authentication (else the second node is refused).
+RAY_ENV = {"RAY_AUTH_MODE": "disabled"}
+
+
+def require_ray() -> None:
+    """Skip the calling test unless Ray is installed; on CI, which installs the `ray` extra
+    (`.ci/run`), fail instead, so a broken install cannot turn these tests into skips."""
+    try:
+        cluster.require_ray()
+    except ConfigError as e:
+        if os.environ.get("CI"):
+            raise RuntimeError(f"CI must install the ray extra: {e}") from None
+        pytest.skip(str(e))
+
+
+def outcomes(report: EvalReport) -> list[tuple]:
+    """Each episode's task, seed, outcome, length and return: what a run decides per seed."""
+    return [
+        (e.metadata["task"], e.metadata["seed"], e.success, e.steps, e.total_reward)
+        for e in report.episodes
+    ]
+
+
+def test_address_forms():
+    for good in ("local", "auto", "10.0.0.1:6379", "head-node:6379", "ray://head:10001"):
+        cluster.check_address(good)
+    for bad in ("", "head", "head:port", "10.0.0.1:0", "10.0.0.1:70000", "http://h:1"):
+        with pytest.raises(ConfigError, match="is not a Ray address; valid: local, auto"):
+            cluster.check_address(bad)
+
+
+def test_without_ray_is_one_config_error(monkeypatch):
+    monkeypatch.setitem(sys.modules, "ray", None)  # `import ray` raises ImportError
+    with pytest.raises(ConfigError, match=r"needs Ray.*pip install 'openral_mjx\[ray\]'"):
+        cluster.require_ray()
+
+
+def test_unreachable_cluster_is_refused_at_once():
+    require_ray()
+    with socket.socket() as s:  # a port nobody listens on
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    start = time.perf_counter()
+    with (
+        pytest.raises(ConfigError, match=f"cannot reach the Ray cluster at '127.0.0.1:{port}'"),
+        cluster.connected(f"127.0.0.1:{port}"),
+    ):
+        pass
+    assert time.perf_counter() - start < 2 * cluster.CONNECT_TIMEOUT_S
+
+
+def _ray(*args: str) -> None:
+    ray_cli = Path(sys.executable).with_name("ray")
+    command = [str(ray_cli) if ray_cli.exists() else shutil.which("ray") or "ray", *args]
+    subprocess.run(
+        command, check=True, env={**os.environ, **RAY_ENV}, capture_output=True, timeout=120
+    )
+
+
+@pytest.fixture(scope="module")
+def two_nodes():
+    """The address of a two-node Ray cluster on 127.0.0.1 (one CPU per node), this checkout's
+    package on the workers' path, stopped after the module's tests."""
+    require_ray()
+    require_worker_envs("metaworld", module=False)  # the mirror's model files
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    node = ["--node-ip-address", "127.0.0.1", "--num-cpus", "1", "--disable-usage-stats"]
+    with pytest.MonkeyPatch.context() as mp:
+        for key, value in RAY_ENV.items():
+            mp.setenv(key, value)
+        try:
+            _ray("start", "--head", "--port", str(port), "--include-dashboard=false", *node)
+            _ray("start", "--address", f"127.0.0.1:{port}", *node)
+            yield f"127.0.0.1:{port}"
+        finally:
+            _ray("stop", "--force")
+
+
+@pytest.fixture(scope="module")
+def local_run() -> EvalReport:
+    """The two tasks run here, one after the other: the per-seed reference."""
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(suite_module, "scene_suite", lambda scene, suite: TASKS)
+        return suite_module.evaluate_suite(*ARGS, RunSpec(backend="c", threads=1, **RUN))
+
+
+@pytest.mark.cluster
+def test_suite_over_two_nodes_equals_a_local_run(
+    two_nodes, local_run, monkeypatch, capsys, tmp_path
+):
+    """`eval --cluster` puts one task on each node and writes the report a local run writes,
+    per seed, with where each task ran."""
+    monkeypatch.setattr(suite_module, "scene_suite", lambda scene, suite: TASKS)
+    out = tmp_path / "suite.json"
+    code, stdout, err = run_cli(
+        monkeypatch,
+        capsys,
+        *("--scene", "metaworld_mjx", "--suite", "mt10", "--policy", "metaworld-expert"),
+        *("--backend", "c", "--threads", "1", "--n-envs", "2", "--max-steps", "60"),
+        *("--cluster", two_nodes, "--out", str(out)),
+    )
+    assert code == 0, err
+    report = load_report(out)
+    assert outcomes(report) == outcomes(local_run)
+    assert report.per_task == local_run.per_task
+    assert report.cluster is not None and report.cluster.address == two_nodes
+    assert report.cluster.nodes == 2 and report.cluster.retries == 0
+    assert [p.part for p in report.cluster.parts] == TASKS
+    assert [p.attempts for p in report.cluster.parts] == [1, 1]
+    assert len({p.node_id for p in report.cluster.parts}) == 2  # one task per node
+    assert "cluster 127.0.0.1" in stdout and "2 parts on 2 of 2 nodes" in stdout
+    assert f"--cluster {two_nodes}" in json.loads(out.read_text())["command"]
+
+
+def _running_parts() -> set[int]:
+    """The pids of Ray workers running a part now (Ray titles them after the function)."""
+    pids = set()
+    for proc in Path("/proc").iterdir():
+        with contextlib.suppress(OSError):
+            if proc.name.isdigit() and (proc / "cmdline").read_bytes().startswith(PART_TITLE):
+                pids.add(int(proc.name))
+    return pids
+
+
+def _kill_first_part(killed: list[int], stop: threading.Event, after_s: float) -> None:
+    """Kill (SIGKILL) the first Ray worker seen running a part, `after_s` after seeing it,
+    if it still runs one then."""
+    seen: dict[int, float] = {}
+    while not stop.is_set() and not killed:
+        running = _running_parts()
+        for pid in running:
+            seen.setdefault(pid, time.monotonic())
+        for pid, since in seen.items():
+            if pid in running and time.monotonic() - since >= after_s:
+                with contextlib.suppress(ProcessLookupError):
+                    os.kill(pid, signal.SIGKILL)
+                    killed.append(pid)
+                break
+        time.sleep(0.05)
+
+
+@pytest.mark.cluster
+def test_killed_worker_runs_its_task_again(two_nodes, local_run, monkeypatch):
+    """A worker killed mid-task: the task runs again, the other's result is kept, the
+    report counts one retry and per seed equals a local run."""
+    monkeypatch.setattr(suite_module, "scene_suite", lambda scene, suite: TASKS)
+    killed: list[int] = []
+    stop = threading.Event()
+    killer = threading.Thread(target=_kill_first_part, args=(killed, stop, 2.0), daemon=True)
+    killer.start()
+    try:
+        report = suite_module.evaluate_suite(
+            *ARGS, RunSpec(backend="c", threads=1, **RUN), cluster=two_nodes
+        )
+    finally:
+        stop.set()
+        killer.join(timeout=10)
+    assert len(killed) == 1
+    assert outcomes(report) == outcomes(local_run)
+    assert report.cluster is not None and report.cluster.retries == 1
+    assert sorted(p.attempts for p in report.cluster.parts) == [1, 2]
+
+
+@pytest.mark.cluster
+def test_interrupt_cancels_the_running_tasks(two_nodes, local_run, monkeypatch):
+    """Ctrl-C as the first task ends: the other task's worker is ended, not waited for, and
+    what finished in the suite's order is kept as a partial report."""
+    monkeypatch.setattr(suite_module, "scene_suite", lambda scene, suite: TASKS)
+
+    def interrupt(done: int, total: int, task: str) -> None:
+        raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt) as stop:
+        suite_module.evaluate_suite(
+            *ARGS, RunSpec(backend="c", threads=1, **RUN), cluster=two_nodes, on_task=interrupt
+        )
+    deadline = time.monotonic() + 10
+    while _running_parts() and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert _running_parts() == set()
+    if isinstance(stop.value, Interrupted):  # the suite's first task was the one that ended
+        kept = stop.value.report
+        assert kept.partial is not None and kept.partial.finished == TASKS[:1]
+        assert outcomes(kept) == outcomes(local_run)[: RUN["n_episodes"]]
+        assert kept.cluster is not None and [p.part for p in kept.cluster.parts] == TASKS[:1]

@@ -139,7 +139,9 @@ COMPARE = [
     (["{in}/good.json", "{in}/not_json.json"], "not valid JSON"),
     (["{in}/good.json", "{in}"], "is a directory"),
     (["{in}/good.json", "{in}/nope.json"], "nope.json' does not exist"),
-    (["{in}/good.json"], "Report B"),
+    (["{in}/good.json"], "compare needs two reports or more"),
+    (["{in}/good.json", "{in}/good.json", "{in}/maybe.json"], "'maybe'"),
+    (["{in}/good.json", "{in}/successes_x.json", "--plots", "{in}/good.json"], "is a file"),
     (["{in}/good.json", "{in}/good.json", "--confidence", "nan"], "nan"),
     (["{in}/good.json", "{in}/good.json", "--confidence", "abc"], "'abc'"),
 ]

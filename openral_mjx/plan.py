@@ -7,13 +7,18 @@ detect a difference rate_B - rate_A of ``--difference`` at A's rate ``--rate`` w
 seeds on which exactly one policy succeeds: stated (``--discordance``), measured on the common
 seeds of two earlier reports (``--from A.json B.json``), or, with neither, what independent
 outcomes would give (the output says which). ``plan interval``: episodes for a
-``--halfwidth`` interval of one policy's success rate at about ``--rate``.
+``--halfwidth`` interval of one policy's success rate at about ``--rate``. ``plan decide``: the
+cap (``--n-episodes``) of ``eval --decide``'s sequential design, looking every
+``--looks-every`` seeds (its ``--n-envs``), that decides a ``--difference`` at ``--discordance``
+with ``--power``, computed with the design's own exact boundaries; and the seeds it expects to
+use at that difference and at none.
 
 A value out of its range (a rate outside [0, 1], B's rate ``rate + difference`` outside it, a
 discordance the rates cannot produce, alpha or power outside (0, 1)) is one line on stderr
 naming it and the valid range, exit code 2.
 
-Example: ``python -m openral_mjx.plan compare --rate 0.6 --difference 0.1 --discordance 0.2``.
+Example: ``python -m openral_mjx.plan compare --rate 0.6 --difference 0.1 --discordance 0.2``,
+``python -m openral_mjx.plan decide --difference 0.05 --discordance 0.2 --looks-every 256``.
 """
 
 from __future__ import annotations
@@ -40,6 +45,7 @@ from openral_mjx.stats import (
     format_paired_plan,
     plan_paired,
 )
+from openral_mjx.stats.decide_planning import format_decide_plan, plan_decide
 
 MAX_SEEDS = PLAN_CAP  # the search's tables grow with it: ~15 s near 10^6 on 2 cores
 
@@ -76,6 +82,28 @@ class IntervalArgs:
     """Confidence level of the interval."""
     method: str = "wilson"
     """Interval: wilson or clopper-pearson."""
+
+
+@dataclasses.dataclass
+class DecideArgs:
+    """The cap of eval --decide (its --n-episodes) for a target power, and its expected seeds."""
+
+    difference: float
+    """rate_B - rate_A to decide (0.05: five points better; negative: worse)."""
+    discordance: float
+    """Share of seeds on which exactly one policy succeeds (at least |difference|)."""
+    power: float = 0.8
+    """Power wanted: the probability of deciding B better (or worse) if the difference is real."""
+    looks_every: int = 256
+    """Seeds between looks: eval --decide looks after every --n-envs seeds."""
+    alpha: float = 0.05
+    """eval --decide's --alpha (its test of no difference spends 0.9 of it)."""
+    spending: str = "obrien-fleming"
+    """eval --decide's --spending: obrien-fleming or pocock."""
+    margin: float | None = None
+    """eval --decide's --margin, if it will be given (slower to plan: seconds more)."""
+    max_seeds: int = PLAN_CAP
+    """The largest cap the search considers (at most 1,000,000)."""
 
 
 def _pilot(paths: tuple[Path, Path]) -> Pilot:
@@ -133,12 +161,29 @@ def run_interval(args: IntervalArgs) -> int:
     return 0
 
 
+def run_decide(args: DecideArgs) -> int:
+    if not 1 <= args.max_seeds <= MAX_SEEDS:
+        raise ConfigError(f"--max-seeds must lie in [1, {MAX_SEEDS:,}], got {args.max_seeds}")
+    plan = plan_decide(
+        args.difference,
+        args.discordance,
+        args.power,
+        args.looks_every,
+        args.alpha,
+        args.margin,
+        args.spending,
+        args.max_seeds,
+    )
+    print(format_decide_plan(plan))
+    return 0
+
+
 def main(argv: Sequence[str] | None = None) -> None:
     """The command: `argv` (default: the process's arguments) -> exit code."""
     prog = "python -m openral_mjx.plan"
-    commands = {"compare": CompareArgs, "interval": IntervalArgs}
+    commands = {"compare": CompareArgs, "interval": IntervalArgs, "decide": DecideArgs}
     args = parse(lambda: tyro.extras.subcommand_cli_from_dict(commands, prog=prog, args=argv), prog)
-    run = {CompareArgs: run_compare, IntervalArgs: run_interval}[type(args)]
+    run = {CompareArgs: run_compare, IntervalArgs: run_interval, DecideArgs: run_decide}[type(args)]
     raise SystemExit(guarded(lambda: run(args)))
 
 

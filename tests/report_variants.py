@@ -45,3 +45,27 @@ def with_steps(report: EvalReport, steps: list[int], rewards: list[float] | None
         for e, s, r in zip(report.episodes, steps, rewards, strict=True)
     ]
     return dataclasses.replace(report, episodes=episodes)
+
+
+def suite_variant(report: EvalReport, outcomes: dict, suite: str = "mt3", **fields) -> EvalReport:
+    """A suite run's report (as `eval --suite` writes one): `outcomes[task]` the successes of
+    that task's seeds 0..n-1, one `per_task` row each, episodes naming their task."""
+    rows, episodes = [], []
+    for task, ok in outcomes.items():
+        one = variant(report, ok, task=task)
+        rows.append(dataclasses.replace(one.per_task[0], task=task))
+        episodes += [
+            dataclasses.replace(e, metadata={**e.metadata, "task": task}) for e in one.episodes
+        ]
+    k = sum(e.success for e in episodes)
+    return dataclasses.replace(
+        report,
+        task=suite,
+        episodes=episodes,
+        per_task=rows,
+        successes=k,
+        n_episodes=len(episodes),
+        success_rate=k / len(episodes),
+        breakdown=[],
+        **fields,
+    )

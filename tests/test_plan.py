@@ -183,3 +183,18 @@ def test_interval_bad_values_are_one_line_exit_2(capsys, argv, needle):
     code, out, err = run_plan(capsys, "interval", *argv)
     assert code == 2 and out == ""
     assert len(err.strip().splitlines()) == 1 and needle in err, err
+
+
+def test_decide_prints_the_libraries_plan(capsys):
+    """`plan decide` is `plan_decide` formatted: the cap, its power, the expected seeds under
+    the effect and under none, and the fixed-size test's seeds."""
+    from openral_mjx.stats.decide_planning import format_decide_plan, plan_decide
+
+    argv = ["decide", "--difference", "0.2", "--discordance", "0.4", "--looks-every", "20"]
+    code, out, err = run_plan(capsys, *argv)
+    assert code == 0 and err == ""
+    plan = plan_decide(0.2, 0.4, looks_every=20)
+    assert plan.design is not None
+    assert out == format_decide_plan(plan) + "\n"
+    assert out.startswith(f"cap {plan.design.cap} seeds ({len(plan.design.looks)} looks of 20)")
+    assert f"--n-envs 20 --n-episodes {plan.design.cap}" in out

@@ -1,8 +1,9 @@
 """Success-rate statistics: binomial intervals (`intervals`), comparisons of two policies
 (`comparison`, and `report_comparison` for two reports), paired differences of a continuous
 per-episode value such as steps or reward (`continuous`), the exact group-sequential design
-(`sequential`), sample sizes planned before a run (`planning`) and the success breakdown by
-episode factor (`breakdown`).
+(`sequential`), sample sizes planned before a run (`planning`), families of comparisons (two
+suites task by task, k policies pairwise: `families`, and `report_families` for reports) and the
+success breakdown by episode factor (`breakdown`).
 
 A new statistic goes in the module of its kind, with an exact or simulated oracle in
 `tests/stats/`; what users call is re-exported here.
@@ -21,6 +22,7 @@ from openral_mjx.stats.comparison import (
     unpaired_comparison,
 )
 from openral_mjx.stats.continuous import PairedMean, paired_mean_difference, t_interval
+from openral_mjx.stats.families import ManyComparison, SuiteComparison, compare_many, compare_suites
 from openral_mjx.stats.intervals import (
     INTERVAL_METHODS,
     binomial_interval,
@@ -47,6 +49,7 @@ from openral_mjx.stats.report_comparison import (
     compare_reports,
     format_comparison,
 )
+from openral_mjx.stats.report_families import compare_many_reports, compare_suite_reports
 from openral_mjx.stats.sequential import SequentialDesign, sufficient_episodes
 
 __all__ = [
@@ -54,18 +57,24 @@ __all__ = [
     "PLAN_CAP",
     "UNPAIRED_TESTS",
     "Comparison",
+    "ManyComparison",
     "PairedDesign",
     "PairedMean",
     "PairedPlan",
     "Pilot",
     "ReportComparison",
     "SequentialDesign",
+    "SuiteComparison",
     "binomial_interval",
     "breakdown",
     "check_comparable",
     "check_confidence",
     "clopper_pearson_interval",
+    "compare_many",
+    "compare_many_reports",
     "compare_reports",
+    "compare_suite_reports",
+    "compare_suites",
     "episodes_for_halfwidth",
     "format_breakdown",
     "format_comparison",

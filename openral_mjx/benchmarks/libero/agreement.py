@@ -45,6 +45,11 @@ class LiberoReference:
         positions and velocities, lerobot's state and the goal."""
         return self._call("rollout", init=int(init), actions=np.asarray(actions, np.float64))
 
+    def body_poses(self, init: int) -> dict[str, np.ndarray]:
+        """Every body's `body_pos` and `body_quat` after LIBERO's reset to initial state
+        `init` (LIBERO's body order)."""
+        return self._call("body_poses", init=int(init))
+
     def check_success(self, states: np.ndarray) -> np.ndarray:
         """LIBERO's goal at each flattened ``[time, qpos, qvel]`` state."""
         return np.asarray(self._call("check_success", states=np.asarray(states, np.float64)))

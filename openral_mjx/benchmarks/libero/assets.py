@@ -36,7 +36,7 @@ from openral_mjx.host.pool import RemoteError, Worker, WorkerFailure
 ENV = "lerobot-libero"
 FACTORY = "openral_mjx.benchmarks.libero.export:TaskExport"
 TIMEOUT_S = 900.0
-FORMAT = 5  # bump when `TaskExport.model`'s content changes: older caches are rebuilt
+FORMAT = 6  # bump when `TaskExport.model`'s content changes: older caches are rebuilt
 
 
 def models_root() -> Path:
@@ -102,6 +102,8 @@ def _export(task: str) -> TaskModel:
             for method in ("goal", "observation_substep"):
                 msg = {"op": "call", "method": method, "kwargs": {}}
                 out[method] = worker.call(msg, TIMEOUT_S)
+            msg = {"op": "call", "method": "fixture_poses", "kwargs": {}}
+            out.update(worker.call(msg, TIMEOUT_S))
     except (RemoteError, WorkerFailure) as e:
         raise ConfigError(f"exporting LIBERO task {task!r} failed: {e} (log: {log})") from None
     arrays = {k: np.asarray(v) for k, v in out.items() if isinstance(v, np.ndarray)}

@@ -64,8 +64,9 @@ class TaskExport:
             "body_inertia": m.body_inertia.copy(),
             "body_ipos": m.body_ipos.copy(),
             "body_iquat": m.body_iquat.copy(),
-            # LIBERO places its fixtures by writing the compiled model's body poses at reset
-            # (the same poses at every reset); the MJCF holds their defaults
+            # LIBERO places its fixtures by writing the compiled model's body poses at reset,
+            # drawn from numpy's global RNG (here seeded with 0, as initial state 0 is; the
+            # others: `fixture_poses`); the MJCF holds their defaults
             "body_pos": m.body_pos.copy(),
             "body_quat": m.body_quat.copy(),
             "nq": int(m.nq),
@@ -112,6 +113,32 @@ class TaskExport:
                 "orientation_limits": ctrl.orientation_limits is None,
             },
         }
+
+    def fixture_poses(self) -> dict[str, np.ndarray]:
+        """Every body's pose after LIBERO's reset for each initial state i, numpy's RNG seeded
+        with i as the worker's `reset` seeds it: LIBERO draws its fixtures' poses (cabinets,
+        stoves, racks: bodies without joints, which an initial state does not hold) at every
+        reset, ~1 cm apart from one seed to the next. Only the reset's sampling runs
+        (`_reset_internal`, which is the first to draw): a full reset rebuilds the model
+        first but draws nothing, so the poses are the same, 500x faster."""
+        inner = self.env
+        pos, quat = [], []
+        for i in range(len(self.host.init_states)):
+            np.random.seed(i)
+            inner.sim.reset()
+            inner._reset_internal()
+            m = inner.sim.model._model
+            pos.append(m.body_pos.copy())
+            quat.append(m.body_quat.copy())
+        self._reset(0)  # leave the env as every other method finds it
+        return {"fixture_pos": np.stack(pos), "fixture_quat": np.stack(quat)}
+
+    def body_poses(self, init: int) -> dict[str, np.ndarray]:
+        """Every body's pose in the model after the worker's full reset to initial state
+        `init` (what `fixture_poses` must reproduce)."""
+        self._reset(init)
+        m = self.env.sim.model._model
+        return {"body_pos": m.body_pos.copy(), "body_quat": m.body_quat.copy()}
 
     def observation_substep(self, steps: int = 20) -> int:
         """Which physics step of a control step (1-based) robosuite's observation is read

@@ -115,10 +115,15 @@ class LiberoEnv:
         return obs
 
     def reset(self, seed: int | None = None, options: dict | None = None) -> tuple[dict, dict]:
+        """Initial state ``options["init_state"] mod 50`` after LIBERO's reset and settle steps.
+        numpy's RNG, which LIBERO's reset draws its fixtures' poses from, is seeded with that
+        index rather than `seed`: seed s then places the fixtures the same on every run and
+        batch layout, and as `libero_mjx` does (`TaskExport.fixture_poses`)."""
+        del seed  # the initial state and the fixtures follow from `init_state` alone
         options = options or {}
-        self.env.seed(seed)
-        self.env.reset()
         init = int(options.get("init_state", 0)) % len(self.init_states)
+        self.env.seed(init)
+        self.env.reset()
         raw = self.env.set_init_state(self.init_states[init])
         for _ in range(SETTLE_STEPS):
             raw, _, _, _ = self.env.step(DUMMY_ACTION)

@@ -95,6 +95,23 @@ def libero():
         yield reference
 
 
+def test_fixtures_sit_where_libero_s_reset_puts_them(scene: LiberoMjx, libero) -> None:
+    """LIBERO's reset draws its fixtures' poses (this task's cabinet, stove and wine rack)
+    from numpy's RNG, seeded with the initial state's index: the mirror's reset to the same
+    state puts every body where LIBERO's full reset does."""
+    names = [str(n) for n in scene.export.meta["body_names"]]
+    ids = np.array([scene.mj_model.body(n).id for n in names])
+    reset = jax.jit(scene.reset_from)
+    refs = {}
+    for init in (1, 17, 42):
+        refs[init] = ref = libero.body_poses(init)
+        fields = reset(jnp.int32(init)).physics.fields
+        for name in ("body_pos", "body_quat"):
+            np.testing.assert_allclose(np.asarray(fields[name])[ids], ref[name], atol=1e-6)
+    # the fixtures do move between initial states (by ~1 cm), so one pose for all would fail
+    assert np.abs(refs[1]["body_pos"] - refs[17]["body_pos"]).max() > 1e-3
+
+
 def goal_states(scene: LiberoMjx, n: int, seed: int) -> np.ndarray:
     """States around the goal: initial state 0 with each atom's joints near their thresholds,
     then each atom's object moved near its target (into, onto and through it), wherever

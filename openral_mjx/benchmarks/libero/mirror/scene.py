@@ -5,8 +5,11 @@ The model is the MJCF LIBERO's own task construction composes (`assets`, exporte
 reproduces of LIBERO's `OffScreenRenderEnv` (robosuite 1.4):
 
 - **Reset**: seed s starts from the task's shipped initial state ``s mod 50``, as on the
-  `libero` host scene, then LIBERO's 10 settle steps with the arm held and the gripper
-  opening. The controller starts as robosuite's `reset` leaves it (`controller`).
+  `libero` host scene, with LIBERO's fixtures (cabinets, stoves, racks, which its reset
+  places by numpy's RNG and the initial states do not hold) where its reset puts them for
+  that state (per-env `body_pos`/`body_quat`, `fixture_fields`), then LIBERO's 10 settle
+  steps with the arm held and the gripper opening. The controller starts as robosuite's
+  `reset` leaves it (`controller`).
 - **Action**: 7-D in [-1, 1], OSC_POSE deltas and the gripper, at 20 Hz over 25 physics steps
   of 2 ms, the torques recomputed every physics step (`controller`).
 - **Observation**: lerobot's LIBERO ``state``: end-effector position, its orientation as
@@ -27,6 +30,7 @@ from typing import Any
 
 import jax
 import jax.numpy as jnp
+import mujoco
 import numpy as np
 
 from openral_mjx.benchmarks.libero.assets import TaskModel, load_task, physics_spec
@@ -66,6 +70,27 @@ def axis_angle(quat_wxyz: jax.Array) -> jax.Array:
     s = jnp.sqrt(1.0 - w * w)
     angle = 2.0 * jnp.arccos(w)
     return jnp.where(s < 1e-8, 0.0, quat_wxyz[1:] * angle / jnp.where(s < 1e-8, 1.0, s))
+
+
+def fixture_fields(export: TaskModel, m: mujoco.MjModel) -> dict[str, jax.Array]:
+    """Per initial state, the model's `body_pos` and `body_quat` with LIBERO's fixtures where
+    its reset for that state puts them (`TaskExport.fixture_poses`), as per-env model fields;
+    empty where no fixture moves from one initial state to another (then the model's own
+    poses, the export's for state 0, hold for all)."""
+    a = export.arrays
+    pos, quat = a["fixture_pos"], a["fixture_quat"]
+    moved = np.flatnonzero((np.ptp(pos, axis=0).max(-1) > 0) | (np.ptp(quat, axis=0).max(-1) > 0))
+    if not moved.size:
+        return {}
+    names = [str(n) for n in export.meta["body_names"]]
+    ids = np.array([m.body(names[i]).id for i in moved])
+    body_pos = np.repeat(m.body_pos[None], len(pos), axis=0)
+    body_quat = np.repeat(m.body_quat[None], len(pos), axis=0)
+    body_pos[:, ids], body_quat[:, ids] = pos[:, moved], quat[:, moved]
+    return {
+        "body_pos": jnp.asarray(body_pos, jnp.float32),
+        "body_quat": jnp.asarray(body_quat, jnp.float32),
+    }
 
 
 def gains(model: TaskModel, ctrlrange: np.ndarray, gripper_ids: np.ndarray) -> OscGains:
@@ -152,6 +177,7 @@ class LiberoMjx(Scene):
             f32("stale_qd"),
         )
         self._stale_first = bool(meta["stale_pending"])
+        self._fixtures = fixture_fields(t, m)
         frames = expert_frames(t.goal)
         bodies = self.backend.quantity_spec.bodies
         self._expert = None if frames is None else [bodies.index(b) for b in frames]
@@ -195,7 +221,8 @@ class LiberoMjx(Scene):
         return self.reset_from(jnp.asarray(seed) % self.n_init_states)
 
     def reset_from(self, init: jax.Array) -> State:
-        physics = self.backend.init(self._init_qpos[init], self._init_qvel[init])
+        fields = {k: table[init] for k, table in self._fixtures.items()}
+        physics = self.backend.init(self._init_qpos[init], self._init_qvel[init], fields)
         controller = ControllerState(
             goal_pos=jnp.zeros(3, jnp.float32),  # every control step sets it
             goal_ori=self._goal_ori,

@@ -149,9 +149,8 @@ def bundled(path: str) -> str:
     return str(kept)
 
 
-def physics_spec(model: TaskModel) -> mujoco.MjSpec:
-    """The mirror's model of the task: collision geoms only, exported inertials pinned."""
-    spec = mujoco.MjSpec.from_string(model.xml)
+def _drop_visuals(spec: mujoco.MjSpec) -> None:
+    """Delete the geoms that collide with nothing and the assets only they use."""
     for geom in list(spec.geoms):
         if geom.contype == 0 and geom.conaffinity == 0:
             spec.delete(geom)
@@ -167,6 +166,17 @@ def physics_spec(model: TaskModel) -> mujoco.MjSpec:
     for texture in list(spec.textures):
         if texture.name not in used_textures:
             spec.delete(texture)
+
+
+def physics_spec(model: TaskModel, visuals: bool = False) -> mujoco.MjSpec:
+    """The mirror's model of the task: collision geoms only, exported inertials pinned.
+
+    `visuals`: keep LIBERO's visual geoms (none collides) with their meshes, materials and
+    textures, for cameras; their files are bundled like the collision meshes' (about 80 MB
+    for a task). The inertials are pinned either way, so the physics is the same (tested)."""
+    spec = mujoco.MjSpec.from_string(model.xml)
+    if not visuals:
+        _drop_visuals(spec)
     for asset in [*spec.meshes, *spec.textures]:
         if asset.file:
             asset.file = bundled(asset.file)

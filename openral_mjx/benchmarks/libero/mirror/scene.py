@@ -69,8 +69,10 @@ STATE_SIZE = 8
 MJX_CONTACTS_PER_CONDIM = 128
 # The cameras lerobot's LIBERO env hands a policy, by its observation names.
 CAMERAS = {"image": "agentview", "wrist_image": "robot0_eye_in_hand"}
-# robosuite draws with MuJoCo's renderer's defaults: textures, skybox, shadows, reflections.
+# robosuite draws with MuJoCo's renderer's defaults (textures, skybox, shadows, reflections)
+# but hides geom group 0, the collision geoms (`render_collision_mesh` off); 1 is the visual.
 LIBERO_STYLE = RgbStyle(textures=True, shadows=True)
+LIBERO_GROUPS = (1, 2)
 
 
 def axis_angle(quat_wxyz: jax.Array) -> jax.Array:
@@ -147,7 +149,14 @@ class LiberoMjx(Scene):
                 sites=(meta["eef_site"],),
                 contacts=self.goal.contacts,
                 sensors=tuple(
-                    RgbSpec(cam, o.image_size, o.image_size, name=key, style=LIBERO_STYLE)
+                    RgbSpec(
+                        cam,
+                        o.image_size,
+                        o.image_size,
+                        name=key,
+                        groups=LIBERO_GROUPS,
+                        style=LIBERO_STYLE,
+                    )
                     for key, cam in CAMERAS.items()
                     if o.image_size is not None
                 ),

@@ -88,6 +88,9 @@ class HostCameras:
                 r.close()
             self._renderers.clear()
 
-        self._thread.submit(free).result()
+        try:
+            self._thread.submit(free).result()
+        except RuntimeError:  # at interpreter exit the executor is already shut down
+            self._renderers.clear()  # the process's end releases the contexts
         self._thread.shutdown()
         self._thread = None

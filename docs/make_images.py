@@ -11,7 +11,7 @@ from pathlib import Path
 
 from openral_mjx.evaluation import run_evaluation
 from openral_mjx.evaluation.replay import choose_seeds, trace_episodes
-from openral_mjx.viz.gl import gl_backend
+from openral_mjx.physics.gl import gl_backend
 from openral_mjx.viz.plots import save_png, success_by_factor
 from openral_mjx.viz.video import default_camera, image_png, still
 

@@ -37,6 +37,7 @@ from openral_mjx.evaluation.sequential import PairedRule, paired_rule
 from openral_mjx.evaluation.suite import evaluate_suite, format_tasks, mps_running
 from openral_mjx.evaluation.sweep import parse_sweep, run_sweep
 from openral_mjx.physics import BACKEND_NAMES
+from openral_mjx.physics.gl import GLUnavailable, camera_id, gl_backend
 from openral_mjx.physics.mj_warnings import count_warnings, format_warnings
 from openral_mjx.policies import POLICIES
 from openral_mjx.policies.lerobot import implied_camera_options
@@ -59,7 +60,6 @@ from openral_mjx.scenes import (
 from openral_mjx.scenes.factor_ranges import parse_factors
 from openral_mjx.stats import compare_reports, format_breakdown, format_comparison
 from openral_mjx.viz import require_viz
-from openral_mjx.viz.gl import GLUnavailable, camera_id, gl_backend
 from openral_mjx.viz.plots import save_png, sweep_curve, write_plots
 from openral_mjx.viz.video import default_camera, write_episode_video
 

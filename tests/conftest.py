@@ -49,7 +49,7 @@ def scripted_eval(push_c):
 @pytest.fixture(scope="session")
 def gl() -> str:
     """A working headless GL backend; CI must have one (`.ci/run` installs Mesa's EGL)."""
-    from openral_mjx.viz.gl import GLUnavailable, gl_backend
+    from openral_mjx.physics.gl import GLUnavailable, gl_backend
 
     try:
         return gl_backend()

@@ -305,7 +305,7 @@ def test_videos_and_plots_next_to_the_report(monkeypatch, capsys, tmp_path, gl):
 
 
 def test_no_gl_still_writes_the_report(monkeypatch, capsys, tmp_path):
-    from openral_mjx.viz.gl import GLUnavailable
+    from openral_mjx.physics.gl import GLUnavailable
 
     def no_gl():
         raise GLUnavailable("no OpenGL backend can render here (egl: no display)")

@@ -27,8 +27,8 @@ class QuantitySpec:
     """What the task logic reads: named bodies', sites' and geoms' world poses, and sensors.
 
     `sensors` are laser scanners (`raycast.LaserSpec`), depth cameras (`raycast.DepthSpec`)
-    and RGB cameras (`RgbSpec`, rendered on `warp` only); their readings appear in
-    `Quantities.sensors` under each spec's key.
+    and RGB cameras (`RgbSpec`: MuJoCo-Warp's renderer on `warp`, MuJoCo's OpenGL renderer on
+    `c`, none on `mjx`); their readings appear in `Quantities.sensors` under each spec's key.
 
     `contacts`: pairs of geom-name sets; each reads whether any geom of the first set touches
     any of the second (in MuJoCo's contact list as the step's collision left it, as
@@ -204,7 +204,7 @@ class PhysicsBackend(abc.ABC):
         for s in quantities.sensors:
             if isinstance(s, RgbSpec) and s.key not in self.rendered:
                 raise ConfigError(
-                    f"rgb camera {s.key!r} needs the warp backend (MuJoCo-Warp's renderer); "
+                    f"rgb camera {s.key!r} needs backend warp or c (a renderer); "
                     f"backend {self.name!r} has depth cameras and lasers only"
                 )
         self.ray_sensors = {
@@ -268,9 +268,12 @@ class PhysicsBackend(abc.ABC):
         state: PhysicsState,
         ctrl: jax.Array,
         mocap: tuple[jax.Array, jax.Array] | None = None,
+        render: bool = True,
     ) -> PhysicsState:
         """Hold `ctrl` (and, for a model with mocap bodies, `mocap` = their positions (nmocap,
-        3) and unit quaternions (nmocap, 4)) for `n_substeps` physics steps."""
+        3) and unit quaternions (nmocap, 4)) for `n_substeps` physics steps. `render` False:
+        `c` draws no RGB camera this step and the new state keeps the previous images (a scene
+        that observes one physics step of several draws that one only); `warp` draws anyway."""
 
     def warm_up(self) -> None:  # noqa: B027 - an optional hook, a no-op by default
         """Build whatever the first step would build lazily (e.g. GPU kernels), so that it is

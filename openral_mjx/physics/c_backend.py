@@ -6,7 +6,8 @@ The float64 MuJoCo state travels through JAX losslessly as its raw bits (`uint32
 the simulation is exactly MuJoCo C's whatever JAX's default float width. Body and site poses
 come back as `framepos`/`framequat` sensors added to this backend's private copy of the model,
 among them the poses of the bodies that ray-cast sensors see; the rays are cast in JAX from
-those poses, as on every backend (`raycast`).
+those poses, as on every backend (`raycast`). RGB cameras (`RgbSpec`) are drawn by MuJoCo's own
+OpenGL renderer in the same callback, per env, from the state the step ends in (`c_render`).
 """
 
 from __future__ import annotations
@@ -33,6 +34,8 @@ from openral_mjx.physics.base import (
     QuantitySpec,
     check_fields,
 )
+from openral_mjx.physics.c_render import HostCameras
+from openral_mjx.physics.cameras import RgbSpec, SensorSpec
 from openral_mjx.physics.contact_sensors import add_contact_sensors
 
 _FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS
@@ -51,6 +54,14 @@ def _close_all() -> None:
     """Stop rollout thread pools before interpreter shutdown (avoids a GIL fault at exit)."""
     for backend in list(_LIVE):
         backend.close()
+
+
+def _with_lead(out: tuple, lead: tuple[int, ...]) -> tuple:
+    """Host results (n, ...) (a dict: each entry) reshaped to vmap's batch shape `lead`."""
+    shape = lambda o: o.reshape(lead + o.shape[1:])  # noqa: E731
+    return tuple(
+        {k: shape(v) for k, v in o.items()} if isinstance(o, dict) else shape(o) for o in out
+    )
 
 
 def default_threads() -> int:
@@ -72,6 +83,11 @@ class CBackend(PhysicsBackend):
     name = "c"
     layout_invariant = True  # per-env C physics outside XLA; see docs/cli.md's determinism table
 
+    def _rendered(self, sensors: tuple[SensorSpec, ...]) -> frozenset[str]:
+        """Every RGB camera, drawn by MuJoCo's renderer (`c_render`); depth is ray cast."""
+        self._rgb = tuple(s for s in sensors if isinstance(s, RgbSpec))
+        return frozenset(s.key for s in self._rgb)
+
     def _setup(self, spec: mujoco.MjSpec) -> None:
         self.threads = self.settings.threads or default_threads()
         self._model = self._model_with_pose_sensors(spec, self.quantity_spec)
@@ -89,6 +105,7 @@ class CBackend(PhysicsBackend):
         self._model_bytes = mujoco.mj_sizeModel(m)  # what one per-env copy takes
         self._written: dict[str, np.ndarray] = {}  # per copy: the field values written into it
         self._lock = threading.Lock()
+        self.cameras = HostCameras(m, self._rgb) if self._rgb else None
         _LIVE.add(self)
 
     def _model_with_pose_sensors(
@@ -131,12 +148,16 @@ class CBackend(PhysicsBackend):
         return self._pool
 
     def close(self) -> None:
-        """Shut the thread pool down (it is re-created on next use)."""
+        """Shut the thread pools down (they are re-created on next use)."""
         if self._pool is not None:
             self._pool.close()
             self._pool = None
+        if self.cameras is not None:
+            self.cameras.close()
 
-    def _readout(self, states: np.ndarray, sens: np.ndarray, ok: np.ndarray) -> tuple:
+    def _readout(
+        self, states: np.ndarray, sens: np.ndarray, ok: np.ndarray, images: dict[str, np.ndarray]
+    ) -> tuple:
         nb, ns = len(self.quantity_spec.bodies), len(self.quantity_spec.sites)
         ng, nr = len(self.quantity_spec.geoms), len(self.sensor_bodies)
         n = len(sens)
@@ -169,6 +190,7 @@ class CBackend(PhysicsBackend):
             seen[:, :, 3:].astype(f32),
             touching,
             ok,
+            images,
         )
 
     def _models(self, n: int, names: tuple[str, ...], values: tuple) -> list[mujoco.MjModel]:
@@ -218,6 +240,7 @@ class CBackend(PhysicsBackend):
         d = mujoco.MjData(self._model)
         states = np.empty((n, self.nstate))
         sens = np.empty((n, self._nsens))
+        images = self._no_images(n)
         for i in range(n):  # reset only, once per chunk: not on the stepping hot path
             m = self._model
             if names:
@@ -228,11 +251,24 @@ class CBackend(PhysicsBackend):
             mujoco.mj_forward(m, d)
             mujoco.mj_getState(m, d, states[i], _FULL)
             sens[i] = d.sensordata
-        out = self._readout(states, sens, np.ones(n, bool))
-        return tuple(o.reshape(lead + o.shape[1:]) for o in out)
+            if self.cameras is not None:
+                for key, image in self.cameras.render(states[i : i + 1], [m]).items():
+                    images[key][i] = image[0]
+        out = self._readout(states, sens, np.ones(n, bool), images)
+        return _with_lead(out, lead)
+
+    def _no_images(self, n: int) -> dict[str, np.ndarray]:
+        """Room for `n` envs' images of every RGB camera (none without cameras)."""
+        return {s.key: np.zeros((n, s.height, s.width, 3), np.uint8) for s in self._rgb}
 
     def _host_step(
-        self, names: tuple[str, ...], mocap: bool, bits: np.ndarray, ctrl: np.ndarray, *rest
+        self,
+        names: tuple[str, ...],
+        mocap: bool,
+        render: bool,
+        bits: np.ndarray,
+        ctrl: np.ndarray,
+        *rest,
     ) -> tuple:
         lead = ctrl.shape[:-1]
         states = np.ascontiguousarray(bits, np.uint32).reshape(-1, 2 * self.nstate)
@@ -244,6 +280,8 @@ class CBackend(PhysicsBackend):
             rest = rest[2:]
         control = np.nan_to_num(np.concatenate(control, axis=1)[:, None, :])
         spec = _CTRL_MOCAP if mocap else _CTRL
+        cameras = self.cameras if render else None
+        images = self._no_images(n) if cameras is not None else {}
         with self._lock:
             pool = self._ensure_pool()
             if not names:
@@ -258,6 +296,8 @@ class CBackend(PhysicsBackend):
                 last, sens = out[:, -1], sens[:, -1]
                 if self.quantity_spec.poses_after_step:
                     sens = self._poses_after(self._model, last)
+                if cameras is not None:
+                    images = cameras.render(last)
             else:  # per-env models, a slice of envs at a time (see `_models`)
                 last = np.empty_like(states)
                 sens = np.empty((n, self._nsens))
@@ -276,12 +316,15 @@ class CBackend(PhysicsBackend):
                     last[a:b], sens[a:b] = out[:, -1], s_out[:, -1]
                     if self.quantity_spec.poses_after_step:
                         sens[a:b] = self._poses_after(models, last[a:b])
+                    if cameras is not None:
+                        for key, image in cameras.render(last[a:b], models).items():
+                            images[key][a:b] = image
         last = np.ascontiguousarray(last)
         # MuJoCo resets a state it finds unstable (time goes back to 0): that env diverged.
         expected = states[:, 0] + self.n_substeps * self._model.opt.timestep
         ok = np.abs(last[:, 0] - expected) < 0.5 * self._model.opt.timestep
-        res = self._readout(last, np.ascontiguousarray(sens), ok)
-        return tuple(o.reshape(lead + o.shape[1:]) for o in res)
+        res = self._readout(last, np.ascontiguousarray(sens), ok, images)
+        return _with_lead(res, lead)
 
     def _poses_after(
         self, models: mujoco.MjModel | list[mujoco.MjModel], states: np.ndarray
@@ -300,7 +343,7 @@ class CBackend(PhysicsBackend):
 
     # ---- JAX side --------------------------------------------------------------------------
 
-    def _result_shapes(self, lead: tuple[int, ...]) -> tuple:
+    def _result_shapes(self, lead: tuple[int, ...], images: bool = True) -> tuple:
         nb, ns = len(self.quantity_spec.bodies), len(self.quantity_spec.sites)
         ng, nr = len(self.quantity_spec.geoms), len(self.sensor_bodies)
         f32 = jnp.float32
@@ -318,10 +361,20 @@ class CBackend(PhysicsBackend):
             sd((*lead, nr, 4), f32),
             sd((*lead, len(self.quantity_spec.contacts)), jnp.bool_),
             sd((*lead,), jnp.bool_),
+            {s.key: sd((*lead, s.height, s.width, 3), jnp.uint8) for s in self._rgb}
+            if images
+            else {},
         )
 
-    def _pack(self, out: Any, fields: dict[str, jax.Array]) -> PhysicsState:
-        bits, qpos, qvel, bpos, bquat, spos, gpos, gquat, rpos, rquat, touching, ok = out
+    def _pack(
+        self, out: Any, fields: dict[str, jax.Array], kept: dict[str, jax.Array] | None = None
+    ) -> PhysicsState:
+        """The state from a callback's results; RGB images from the results in [0, 1], or
+        `kept` (a step that drew none keeps the previous state's)."""
+        bits, qpos, qvel, bpos, bquat, spos, gpos, gquat, rpos, rquat, touching, ok, images = out
+        sensors = self.read_sensors_of(rpos, rquat, fields)
+        sensors.update({k: v.astype(jnp.float32) / 255.0 for k, v in images.items()})
+        sensors.update(kept or {})
         q = Quantities(
             qpos=qpos,
             qvel=qvel,
@@ -331,7 +384,7 @@ class CBackend(PhysicsBackend):
             geom_pos=gpos,
             geom_quat=gquat,
             ok=ok,
-            sensors=self.read_sensors_of(rpos, rquat, fields),
+            sensors=sensors,
             contacts=touching,
         )
         return PhysicsState(data=bits, quantities=q, fields=fields)
@@ -357,19 +410,21 @@ class CBackend(PhysicsBackend):
         state: PhysicsState,
         ctrl: jax.Array,
         mocap: tuple[jax.Array, jax.Array] | None = None,
+        render: bool = True,
     ) -> PhysicsState:
         names = tuple(sorted(state.fields))
         extra = [] if mocap is None else [m.astype(jnp.float32) for m in mocap]
         out = jax.pure_callback(
-            functools.partial(self._host_step, names, mocap is not None),
-            self._result_shapes(()),
+            functools.partial(self._host_step, names, mocap is not None, render),
+            self._result_shapes((), images=render),
             state.data,
             ctrl.astype(jnp.float32),
             *extra,
             *(state.fields[k] for k in names),
             vmap_method="broadcast_all",
         )
-        new = self._pack(out, state.fields)
+        kept = {} if render else {s.key: state.quantities.sensors[s.key] for s in self._rgb}
+        new = self._pack(out, state.fields, kept)
         q = new.quantities
         return new.replace(quantities=q.replace(ok=q.ok & state.quantities.ok))
 

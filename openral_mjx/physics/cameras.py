@@ -34,8 +34,9 @@ class RgbStyle:
 class RgbSpec:
     """An RGB image of MJCF camera `camera`, width x height pixels, values in [0, 1].
 
-    Only the `warp` backend renders images (MuJoCo-Warp's batch renderer); elsewhere asking
-    for one is a `ConfigError`. Intrinsics are the camera's own, scaled to the image.
+    `warp` renders them with MuJoCo-Warp's batch renderer, `c` with MuJoCo's OpenGL renderer
+    (`c_render`); on `mjx` asking for one is a `ConfigError`. Intrinsics are the camera's own,
+    scaled to the image.
     """
 
     camera: str

@@ -189,7 +189,9 @@ class MjxBackend(PhysicsBackend):
         state: PhysicsState,
         ctrl: jax.Array,
         mocap: tuple[jax.Array, jax.Array] | None = None,
+        render: bool = True,
     ) -> PhysicsState:
+        del render  # `warp` draws its cameras at every step (a later step may skip them)
         # A diverged env (already counted a failure) is parked at the reference pose, so its
         # garbage cannot spread, e.g. into Warp's contact buffer shared by the batch.
         d, ok = state.data, state.quantities.ok

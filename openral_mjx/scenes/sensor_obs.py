@@ -5,7 +5,7 @@ each sensor is appended as a named slice of `Scene.obs_layout`, flattened row-ma
 array shape in `Scene.obs_shapes`, so an image policy reshapes its slice. Depth and laser
 ranges are metres, RGB is in [0, 1]. The physics backend produces the readings
 (`Quantities.sensors`): ray cast from body poses on every backend, rendered by MuJoCo-Warp's
-batch renderer for cameras on `warp`.
+batch renderer for cameras on `warp`, by MuJoCo's OpenGL renderer on `c`.
 """
 
 from __future__ import annotations
@@ -34,7 +34,7 @@ class SensorObsOptions:
             join the observation as `depth_CAMERA` slices.
         obs_depth_size: their (width, height) in pixels; intrinsics are the camera's own.
         obs_depth_range: (min, max) depth measured (m); pixels outside read the max.
-        obs_rgb_cameras: cameras whose RGB images join as `rgb_CAMERA` (`warp` only).
+        obs_rgb_cameras: cameras whose RGB images join as `rgb_CAMERA` (`warp`, `c`).
         obs_rgb_size: their (width, height).
         obs_rgb_textures, obs_rgb_shadows, obs_rgb_samples: how they are drawn (`RgbStyle`):
             textures and skybox, shadows, sub-pixel samples per axis (anti-aliasing).

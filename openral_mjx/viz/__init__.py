@@ -1,4 +1,5 @@
-"""Looking at rollouts: episode videos (`video`), report plots (`plots`), headless GL (`gl`).
+"""Looking at rollouts: episode videos (`video`), report plots (`plots`); headless GL is
+`physics.gl`.
 
 Everything here runs after the batched rollout, on the host, and needs the optional `viz`
 extra (matplotlib, PyAV): `pip install 'openral_mjx[viz]'`.

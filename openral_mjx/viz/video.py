@@ -24,8 +24,8 @@ import numpy as np
 
 from openral_mjx.core.files import atomic_path
 from openral_mjx.evaluation.replay import EpisodeTrace
+from openral_mjx.physics.gl import FrameRenderer, camera_id
 from openral_mjx.scenes.base import Scene
-from openral_mjx.viz.gl import FrameRenderer, camera_id
 
 HEADER_H = 48
 PANEL_W, PANEL_H = 448, 336  # multiples of 16: whole H.264 macroblocks

@@ -162,9 +162,9 @@ def test_sensor_slices_of_the_observation(box_warp_cameras, warp_states):
     assert rgb.min() >= 0 and rgb.max() <= 1 and rgb.std() > 0.01
 
 
-def test_rgb_needs_the_warp_backend():
-    with pytest.raises(ConfigError, match="rgb camera 'rgb_overhead' needs the warp backend"):
-        make_scene("so101_box", {"obs_rgb_cameras": ["overhead"]}, backend="c")
+def test_rgb_needs_a_renderer():
+    with pytest.raises(ConfigError, match="rgb camera 'rgb_overhead' needs backend warp or c"):
+        make_scene("so101_box", {"obs_rgb_cameras": ["overhead"]}, backend="mjx")
 
 
 _LIGHTS = """

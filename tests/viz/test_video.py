@@ -12,8 +12,8 @@ import pytest
 from openral_mjx.core.errors import ConfigError
 from openral_mjx.evaluation import Evaluation
 from openral_mjx.evaluation.replay import choose_seeds, trace_episodes
+from openral_mjx.physics import gl as gl_module
 from openral_mjx.runner import seed_keys
-from openral_mjx.viz import gl as gl_module
 from openral_mjx.viz.video import (
     HEADER_H,
     PANEL_H,

@@ -81,13 +81,14 @@ def _read(task: str) -> TaskModel | None:
 
 
 @contextlib.contextmanager
-def task_worker(task: str) -> Iterator[tuple[Worker, Path]]:
-    """A worker holding LIBERO's `TaskExport` for `task` (``suite/index``), and its log;
-    closed on exit."""
+def task_worker(task: str, image_size: int | None = None) -> Iterator[tuple[Worker, Path]]:
+    """A worker holding LIBERO's `TaskExport` for `task` (``suite/index``; its cameras at
+    `image_size`, if given), and its log; closed on exit."""
     log = Path(tempfile.mkdtemp(prefix="openral_mjx_libero_")) / "worker.log"
     worker = Worker(ensure_env(ENV), {"MUJOCO_GL": "egl"}, log, name=f"libero {task}")
+    kwargs = {"task": task, **({"image_size": image_size} if image_size else {})}
     try:
-        worker.call({"op": "init", "factory": FACTORY, "kwargs": {"task": task}}, TIMEOUT_S)
+        worker.call({"op": "init", "factory": FACTORY, "kwargs": kwargs}, TIMEOUT_S)
         yield worker, log
     finally:
         worker.close()
@@ -151,9 +152,8 @@ def bundled(path: str) -> str:
     return str(kept)
 
 
-def physics_spec(model: TaskModel) -> mujoco.MjSpec:
-    """The mirror's model of the task: collision geoms only, exported inertials pinned."""
-    spec = mujoco.MjSpec.from_string(model.xml)
+def _drop_visuals(spec: mujoco.MjSpec) -> None:
+    """Delete the geoms that collide with nothing and the assets only they use."""
     for geom in list(spec.geoms):
         if geom.contype == 0 and geom.conaffinity == 0:
             spec.delete(geom)
@@ -169,11 +169,29 @@ def physics_spec(model: TaskModel) -> mujoco.MjSpec:
     for texture in list(spec.textures):
         if texture.name not in used_textures:
             spec.delete(texture)
+
+
+def physics_spec(model: TaskModel, visuals: bool = False) -> mujoco.MjSpec:
+    """The mirror's model of the task: collision geoms only, exported inertials pinned.
+
+    `visuals`: keep LIBERO's visual geoms (none collides) with their meshes, materials and
+    textures, for cameras; their files are bundled like the collision meshes' (about 80 MB
+    for a task). The inertials are pinned either way, so the physics is the same (tested)."""
+    spec = mujoco.MjSpec.from_string(model.xml)
+    a = model.arrays
+    if not visuals:
+        _drop_visuals(spec)
+    else:  # every geom and site kept, in the compiled model's order: LIBERO's colours
+        for kind in ("geom", "site"):
+            elements, rgba = getattr(spec, f"{kind}s"), a[f"{kind}_rgba"]
+            if len(elements) != len(rgba):
+                raise ConfigError(f"LIBERO task {model.task}: {kind}s differ from its export")
+            for element, colour in zip(elements, rgba, strict=True):
+                element.rgba = colour
     for asset in [*spec.meshes, *spec.textures]:
         if asset.file:
             asset.file = bundled(asset.file)
     names = [str(n) for n in model.meta["body_names"]]
-    a = model.arrays
     for i, name in enumerate(names[1:], start=1):  # the world body has no inertial
         body = spec.body(name)
         if body is None:

@@ -214,7 +214,7 @@ def libero_expert(scene: Any, arg: str | None) -> Policy:
             f"policy 'libero-expert' picks and places: task {scene.task!r}'s goal has no On or "
             "In atom (opening, closing and turning are not scripted)"
         )
-    if name == "libero_mjx":
+    if name == "libero_mjx" and scene.obs_layout:  # a flat vector (no cameras)
         (s0, sn), (e0, en) = scene.obs_layout["state"], scene.obs_layout["expert"]
 
         def views(obs: Any) -> tuple[jax.Array, jax.Array]:

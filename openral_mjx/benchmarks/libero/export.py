@@ -10,7 +10,8 @@ the host scene's env, so LIBERO's config and assets are set up the same way) and
 - the compiled model's body inertials (``body_mass``, ``body_inertia``, ``body_ipos``,
   ``body_iquat``), so the mirror can pin them whatever its compiler infers, and its body
   poses after `reset` (``body_pos``, ``body_quat``): LIBERO places its fixtures by writing
-  them into the compiled model, not the MJCF;
+  them into the compiled model, not the MJCF; and its geom and site colours after `reset`
+  (``geom_rgba``, ``site_rgba``: it hides sites by their alpha there);
 - the task's 50 shipped initial states, flattened as MuJoCo's ``[time, qpos, qvel]``;
 - robosuite's OSC_POSE controller constants (gains, action scaling, the nullspace pose,
   torque limits), the gripper's speed and actuators, and the controller's state after
@@ -40,8 +41,9 @@ _METHODS = {"open": "is_open", "close": "is_close", "turnon": "turn_on", "turnof
 class TaskExport:
     """One LIBERO task, built once; see the module docstring."""
 
-    def __init__(self, task: str) -> None:
-        self.host = LiberoEnv(task, image_size=16, expert=True)  # no images read: keep them small
+    def __init__(self, task: str, image_size: int = 16) -> None:
+        # only `camera_states` reads the images: small unless it asks
+        self.host = LiberoEnv(task, image_size=image_size, expert=True)
         self.env = self.host.env.env  # robosuite's environment under LIBERO's wrapper
 
     def _reset(self, init: int) -> None:
@@ -69,6 +71,10 @@ class TaskExport:
             # others: `fixture_poses`); the MJCF holds their defaults
             "body_pos": m.body_pos.copy(),
             "body_quat": m.body_quat.copy(),
+            # colours as LIBERO's reset leaves them: it hides its visualisation sites (the
+            # gripper's, a stove's burner while off) by their alpha in the compiled model
+            "geom_rgba": m.geom_rgba.copy(),
+            "site_rgba": m.site_rgba.copy(),
             "nq": int(m.nq),
             "nv": int(m.nv),
             "init_states": np.asarray(self.host.init_states, np.float64),
@@ -171,6 +177,46 @@ class TaskExport:
         if len(found) != 1 or -1 in found:
             raise ValueError(f"robosuite's observation follows no one physics step: {found}")
         return found.pop()
+
+    def camera_states(self, init: int, actions: np.ndarray, drawn: int) -> dict[str, np.ndarray]:
+        """LIBERO's camera observations (``image``, ``wrist_image``, as the host scene gives
+        them) after the reset to initial state `init` and after each of `actions`, and the
+        state each was drawn from: ``qpos``, ``qvel`` at the end of physics step `drawn`
+        (1-based) of that control step (robosuite renders from the data its observed step
+        leaves, whose poses are the previous step's state)."""
+        n = round(self.env.control_timestep / self.env.model_timestep)
+        seen: list[np.ndarray] = []
+        # the class's `step`: LIBERO's reset may build a new simulation object
+        sim_class = type(self.env.sim)
+        step = sim_class.step
+
+        def recording_step(sim: Any) -> None:
+            step(sim)
+            seen.append(np.concatenate([sim.data.qpos, sim.data.qvel]))
+
+        out: dict[str, list[np.ndarray]] = {"image": [], "wrist_image": [], "state": []}
+
+        def record(obs: dict[str, np.ndarray]) -> None:
+            out["image"].append(obs["image"])
+            out["wrist_image"].append(obs["wrist_image"])
+            out["state"].append(seen[len(seen) - n + drawn - 1])
+
+        sim_class.step = recording_step
+        try:
+            obs, _ = self.host.reset(seed=0, options={"init_state": init})
+            record(obs)
+            for a in np.asarray(actions, np.float64):
+                obs, *_ = self.host.step(a)
+                record(obs)
+        finally:
+            sim_class.step = step
+        nq = self.env.sim.model._model.nq
+        state = np.stack(out.pop("state"))
+        return {
+            **{k: np.stack(v) for k, v in out.items()},
+            "qpos": state[:, :nq],
+            "qvel": state[:, nq:],
+        }
 
     def goal(self) -> list[dict[str, Any]]:
         """The task's BDDL goal as data the mirror evaluates in JAX (`goal_atoms`)."""

@@ -10,7 +10,7 @@ camera of MetaWorld's model:
 - **warp**: the scene's observation path (`obs_rgb_cameras`, default style: textures, skybox,
   shadows), i.e. the images a reset at that joint state observes;
 - **MuJoCo**: `mj_forward` on the same model and state, then MuJoCo's OpenGL renderer
-  (`mjr_render` through `viz.gl.FrameRenderer`, headless EGL or OSMesa) with its default flags
+  (`mjr_render` through `physics.gl.FrameRenderer`, headless EGL or OSMesa) with its default flags
   (shadows, reflections, the model's 4x multisampling: as `mujoco.Renderer` and MetaWorld
   draw); sites hidden, as MuJoCo-Warp draws none. The `sites` column draws them as
   MetaWorld's renders do (its goal marker at the episode's target, the arm's debug sites).
@@ -42,10 +42,10 @@ from openral_mjx.benchmarks.metaworld.mirror import scene as mirror
 from openral_mjx.benchmarks.metaworld.mirror.scene import _MOCAP_QUAT as MOCAP_QUAT
 from openral_mjx.core.files import write_text_atomic
 from openral_mjx.physics import PhysicsSettings
+from openral_mjx.physics.gl import FrameRenderer, gl_backend
 from openral_mjx.policies import make_policy
 from openral_mjx.runner.episode import seed_keys
 from openral_mjx.scenes import make_scene
-from openral_mjx.viz.gl import FrameRenderer, gl_backend
 
 TOL = 8  # per channel, in 1/255
 SIZE = (480, 480)  # MetaWorld's default render size (width, height)

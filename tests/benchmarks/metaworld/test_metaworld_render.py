@@ -14,9 +14,9 @@ from worker_envs import require_worker_envs
 from openral_mjx.benchmarks.metaworld import render
 from openral_mjx.core.errors import ConfigError
 from openral_mjx.physics import PhysicsSettings
+from openral_mjx.physics.gl import GLUnavailable, gl_backend
 from openral_mjx.runner.episode import seed_keys
 from openral_mjx.scenes import make_scene
-from openral_mjx.viz.gl import GLUnavailable, gl_backend
 
 require_worker_envs("metaworld")
 pytestmark = pytest.mark.worker
@@ -32,8 +32,10 @@ MIN_WITHIN = 0.75
 def test_unknown_camera_and_sensors_are_one_line_errors():
     with pytest.raises(ConfigError, match=f"unknown MetaWorld camera 'nope'; valid: {CAMERAS}$"):
         make_scene("metaworld_mjx", {"task": "push-v3", "obs_rgb_cameras": ["nope"]}, backend="c")
-    with pytest.raises(ConfigError, match="needs the warp backend"):
-        make_scene("metaworld_mjx", {"task": "push-v3", "obs_rgb_cameras": ["corner"]}, backend="c")
+    with pytest.raises(ConfigError, match="needs backend warp or c"):
+        make_scene(
+            "metaworld_mjx", {"task": "push-v3", "obs_rgb_cameras": ["corner"]}, backend="mjx"
+        )
     with pytest.raises(ConfigError, match="observes RGB cameras only"):
         make_scene("metaworld_mjx", {"obs_depth_cameras": ["corner"]}, backend="c")
 

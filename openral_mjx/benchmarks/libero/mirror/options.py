@@ -11,15 +11,22 @@ from openral_mjx.core.options import check
 @dataclasses.dataclass(frozen=True)
 class LiberoMjxOptions:
     """The LIBERO task (``suite/index``, as on the `libero` host scene), the episode limit
-    (default: the suite's, as lerobot's LIBERO evaluation sets it), and whether the
-    observation has the ``expert`` entry that `libero-expert` reads (as on the host scene)."""
+    (default: the suite's, as lerobot's LIBERO evaluation sets it), whether the observation
+    has the ``expert`` entry that `libero-expert` reads (as on the host scene), and
+    `image_size`: None observes no camera (one flat vector: ``state``, ``expert``); a size
+    observes the host scene's dict, ``image`` (agentview) and ``wrist_image``
+    (robot0_eye_in_hand) square RGB uint8 turned upright as lerobot's LIBERO env turns them,
+    beside ``state`` and ``expert`` (backend `c` only for now: MuJoCo's renderer)."""
 
     task: str = "libero_spatial/0"
     max_steps: int | None = None
     expert: bool = True
+    image_size: int | None = None
 
     def __post_init__(self) -> None:
         parse_task(self.task)
+        if self.image_size is not None:
+            check(self.image_size >= 8, f"option image_size={self.image_size}: must be >= 8")
         if self.max_steps is not None:
             check(self.max_steps >= 1, f"option max_steps={self.max_steps}: must be >= 1")
 

@@ -20,12 +20,19 @@ reproduces of LIBERO's `OffScreenRenderEnv` (robosuite 1.4):
 - **Expert entry** (option ``expert``, on by default): the moved object's position and its
   target body's pose (`export.expert_frames`), from the data the control step's last physics
   step leaves, as the host scene's workers read them; what `libero-expert` plays from.
+- **Cameras** (option ``image_size``, backend `c`): ``image`` (agentview) and ``wrist_image``
+  (robot0_eye_in_hand) as the host scene gives them, drawn by MuJoCo's renderer from the model
+  with LIBERO's visual geoms, textures and lights. robosuite renders them when it samples its
+  observables (the same physics step as the state), from the data that step leaves, whose
+  poses are those of the state one physics step earlier: the mirror draws that state. The
+  observation is then the host scene's dict instead of a flat vector.
 - **Success**: the task's BDDL goal, as LIBERO's predicates evaluate it (`goal`); it ends
   the episode, as on the host scene.
 """
 
 from __future__ import annotations
 
+import functools
 from typing import Any
 
 import jax
@@ -47,6 +54,7 @@ from openral_mjx.benchmarks.libero.mirror.controller import (
 )
 from openral_mjx.benchmarks.libero.mirror.goal import Goal
 from openral_mjx.benchmarks.libero.mirror.options import LiberoMjxOptions
+from openral_mjx.core.errors import ConfigError
 from openral_mjx.physics import (
     PhysicsSettings,
     PhysicsState,
@@ -55,6 +63,7 @@ from openral_mjx.physics import (
     make_backend,
     resolve_backend_name,
 )
+from openral_mjx.physics.cameras import RgbSpec, RgbStyle
 from openral_mjx.scenes.base import Scene, State, obs_slices
 from openral_mjx.scenes.composition import for_mjx_jax
 
@@ -62,6 +71,12 @@ STATE_SIZE = 8
 # MJX contact slots kept per condim on `mjx` (`for_mjx_jax`): LIBERO's scenes hold 18-87
 # active contacts after their settle steps (libero_10/0, libero_spatial/0).
 MJX_CONTACTS_PER_CONDIM = 128
+# The cameras lerobot's LIBERO env hands a policy, by its observation names.
+CAMERAS = {"image": "agentview", "wrist_image": "robot0_eye_in_hand"}
+# robosuite draws with MuJoCo's renderer's defaults (textures, skybox, shadows, reflections)
+# but hides geom group 0, the collision geoms (`render_collision_mesh` off); 1 is the visual.
+LIBERO_STYLE = RgbStyle(textures=True, shadows=True)
+LIBERO_GROUPS = (1, 2)
 
 
 def axis_angle(quat_wxyz: jax.Array) -> jax.Array:
@@ -112,6 +127,16 @@ def gains(model: TaskModel, ctrlrange: np.ndarray, gripper_ids: np.ndarray) -> O
     )
 
 
+def camera_images(q: Quantities) -> dict[str, jax.Array]:
+    """The cameras' images as lerobot's LIBERO env hands them over: uint8, and rotated by
+    180 degrees from what the camera sees (its ``[::-1, ::-1]`` of MuJoCo's bottom-up rows;
+    ours come upright, so only the columns turn)."""
+    return {
+        k: jnp.round(jnp.clip(q.sensors[k][:, ::-1], 0.0, 1.0) * 255.0).astype(jnp.uint8)
+        for k in CAMERAS
+    }
+
+
 class LiberoMjx(Scene):
     """One LIBERO task on a MuJoCo backend (see the module docstring)."""
 
@@ -127,8 +152,14 @@ class LiberoMjx(Scene):
     ) -> None:
         self.options = o = options or LiberoMjxOptions()
         self.task = o.task
+        cameras = o.image_size is not None
+        if cameras and resolve_backend_name(backend) != "c":
+            raise ConfigError(
+                f"libero_mjx option image_size renders on backend c only for now (MuJoCo's "
+                f"renderer), not {resolve_backend_name(backend)!r}"
+            )
         self.export = t = load_task(o.task)
-        self.spec = physics_spec(t)
+        self.spec = physics_spec(t, visuals=cameras)
         self.mjx_changes: dict[str, int] = {}
         if resolve_backend_name(backend) == "mjx":
             self.mjx_changes = for_mjx_jax(self.spec, MJX_CONTACTS_PER_CONDIM)
@@ -142,6 +173,18 @@ class LiberoMjx(Scene):
                 bodies=(meta["eef_body"], *self.goal.bodies),
                 sites=(meta["eef_site"],),
                 contacts=self.goal.contacts,
+                sensors=tuple(
+                    RgbSpec(
+                        cam,
+                        o.image_size,
+                        o.image_size,
+                        name=key,
+                        groups=LIBERO_GROUPS,
+                        style=LIBERO_STYLE,
+                    )
+                    for key, cam in CAMERAS.items()
+                    if o.image_size is not None
+                ),
             ),
             1,  # the controller acts at every physics step; `step` runs them
             settings,
@@ -149,6 +192,11 @@ class LiberoMjx(Scene):
         m = self.mj_model
         self.n_substeps = int(meta["n_substeps"])
         self.observed_substep = int(meta["observation_substep"])
+        if cameras and self.observed_substep < 2:
+            raise ConfigError(
+                f"LIBERO task {o.task}: robosuite observes physics step {self.observed_substep}"
+                " of a control step; the mirror's cameras draw one step before it (>= 2)"
+            )
         self.dynamics = RobotDynamics(self.spec, compiled, meta["arm_joints"], meta["eef_site"])
         joint = lambda n: m.joint(n)  # noqa: E731
         self._robot_qpos = np.array([joint(n).qposadr[0] for n in self.dynamics.qpos_names])
@@ -182,14 +230,30 @@ class LiberoMjx(Scene):
         bodies = self.backend.quantity_spec.bodies
         self._expert = None if frames is None else [bodies.index(b) for b in frames]
         sizes = {"state": STATE_SIZE, **({"expert": EXPERT_SIZE} if o.expert else {})}
-        self._layout = obs_slices(sizes)
-        self._obs_size = sum(sizes.values())
+        self._layout = {} if cameras else obs_slices(sizes)
+        self._obs_sizes = sizes
 
     # ---- layout ---------------------------------------------------------------------------
 
     @property
+    def cameras(self) -> bool:
+        """Whether the observation holds camera images (the host scene's dict)."""
+        return self.options.image_size is not None
+
+    @property
     def obs_layout(self) -> dict[str, tuple[int, int]]:
+        """The flat observation's slices; none where it is a dict (cameras on)."""
         return dict(self._layout)
+
+    @property
+    def observation_size(self) -> int:
+        if self.cameras:
+            raise ConfigError(
+                "libero_mjx with image_size observes a dict of arrays (image, wrist_image, "
+                "state, expert), not one flat vector: policies and trainers that need a flat "
+                "vector (mlp, finetune) do not apply"
+            )
+        return sum(self._obs_sizes.values())
 
     @property
     def instruction(self) -> str:
@@ -233,7 +297,7 @@ class LiberoMjx(Scene):
             0,
             n,
             lambda i, pco: self._control(*pco[:2], action, stale=(i == 0) & self._stale_first),
-            (physics, controller, jnp.zeros(self._obs_size, jnp.float32)),
+            (physics, controller, self._zero_obs()),
         )
         diverged = ~physics.quantities.ok
         return State(
@@ -273,7 +337,7 @@ class LiberoMjx(Scene):
         old, old_q, old_qd = self._stale
         nu = self.mj_model.nu
 
-        def substep(i: jax.Array, pco: tuple) -> tuple:
+        def substep(i: jax.Array, pco: tuple, render: bool = True) -> tuple:
             p, c, obs = pco
             q = p.quantities
             dyn, qa, qda = self._dynamics(p), q.qpos[self._arm_q], q.qvel[self._arm_v]
@@ -292,17 +356,26 @@ class LiberoMjx(Scene):
             c, fingers = gripper_step(g, c, action[6])
             ctrl = jnp.zeros(nu, jnp.float32).at[self._arm_act].set(tau)
             ctrl = ctrl.at[self._grip_act].set(fingers)
-            p = self.backend.step(p, ctrl)
+            p = self.backend.step(p, ctrl, render=render)
             obs = jnp.where(i + 1 == self.observed_substep, self._obs(p), obs)
             return p, c, obs
 
-        obs = jnp.zeros(STATE_SIZE, jnp.float32)
-        physics, controller, obs = jax.lax.fori_loop(
-            0, self.n_substeps, substep, (physics, controller, obs)
-        )
+        carry = (physics, controller, jnp.zeros(STATE_SIZE, jnp.float32))
+        if self.cameras:  # draw the end of physics step `observed_substep - 1` only
+            drawn = self.observed_substep - 2  # its 0-based index
+            plain = functools.partial(substep, render=False)
+            carry = jax.lax.fori_loop(0, drawn, plain, carry)
+            carry = substep(jnp.int32(drawn), carry)
+            carry = jax.lax.fori_loop(drawn + 1, self.n_substeps, plain, carry)
+        else:
+            carry = jax.lax.fori_loop(0, self.n_substeps, substep, carry)
+        physics, controller, state = carry
+        obs = {"state": state}
         if self.options.expert:
-            obs = jnp.concatenate([obs, self._expert_entry(physics.quantities)])
-        return physics, controller, obs
+            obs["expert"] = self._expert_entry(physics.quantities)
+        if not self.cameras:
+            return physics, controller, jnp.concatenate(list(obs.values()))
+        return physics, controller, {**camera_images(physics.quantities), **obs}
 
     def step(self, state: State, action: jax.Array) -> State:
         action = action.astype(jnp.float32)
@@ -311,7 +384,7 @@ class LiberoMjx(Scene):
         success = self.goal(physics.quantities, body_offset=1) & ~diverged
         return state.replace(
             physics=physics,
-            obs=jnp.where(diverged, 0.0, obs),
+            obs=jax.tree.map(lambda x: jnp.where(diverged, jnp.zeros_like(x), x), obs),
             reward=success.astype(jnp.float32),
             done=success | diverged,
             metrics={"success": success, "diverged": diverged},
@@ -319,6 +392,14 @@ class LiberoMjx(Scene):
         )
 
     # ---- observation ----------------------------------------------------------------------
+
+    def _zero_obs(self) -> Any:
+        """An observation of zeros, shaped as the scene's."""
+        if not self.cameras:
+            return jnp.zeros(sum(self._obs_sizes.values()), jnp.float32)
+        size = int(self.options.image_size)  # type: ignore[arg-type]
+        images = {k: jnp.zeros((size, size, 3), jnp.uint8) for k in CAMERAS}
+        return {**images, **{k: jnp.zeros(n, jnp.float32) for k, n in self._obs_sizes.items()}}
 
     def _expert_entry(self, q: Quantities) -> jax.Array:
         """The moved object's position, its target body's position and orientation."""

@@ -16,8 +16,9 @@ class MetaWorldMjxOptions(SensorObsOptions):
     """The MetaWorld task (a name of `TASKS`), whether the goal is observed (MT benchmarks:
     true; ML: false, as MetaWorld's goal-hidden envs), and the episode limit (MetaWorld's 500).
 
-    Pixel observations (off by default; `warp` only): `obs_rgb_cameras` names cameras of
-    MetaWorld's model (`corner`, `corner2`, `corner3`, `corner4`, `topview`, `behindGripper`,
+    Pixel observations (off by default; `warp`, or `c` with MuJoCo's renderer):
+    `obs_rgb_cameras` names cameras of MetaWorld's model (`corner`, `corner2`, `corner3`,
+    `corner4`, `topview`, `behindGripper`,
     `gripperPOV`), each an `rgb_CAMERA` slice of `obs_rgb_size` after the 39 state floats,
     drawn with textures, skybox and shadows as MetaWorld's own renders are (how far they
     agree: docs/metaworld_mjx.md). Depth cameras and lasers are ray cast, which knows

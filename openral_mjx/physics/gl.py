@@ -90,8 +90,9 @@ class FrameRenderer:
 
     Shadows and reflections are off unless asked for (MuJoCo's defaults, as
     `mujoco.Renderer` draws): in software GL they cost 10-30x the rest of a frame. `sites`
-    False hides every site (drawn by default). `model` is modified (offscreen buffer size),
-    so pass a copy you own.
+    False hides every site (drawn by default); `textures` False draws no textures and no
+    skybox; `groups`: the geom groups drawn (default MuJoCo's, 0-2). `model` is modified
+    (offscreen buffer size), so pass a copy you own.
     """
 
     def __init__(
@@ -104,6 +105,8 @@ class FrameRenderer:
         shadows: bool = False,
         reflections: bool = False,
         sites: bool = True,
+        textures: bool = True,
+        groups: tuple[int, ...] | None = None,
     ) -> None:
         self.model = model
         model.vis.global_.offwidth = max(model.vis.global_.offwidth, width)
@@ -118,17 +121,25 @@ class FrameRenderer:
         self._option = mujoco.MjvOption()
         if not sites:
             self._option.sitegroup[:] = 0
+        if groups is not None:
+            self._option.geomgroup[:] = [g in groups for g in range(len(self._option.geomgroup))]
+        self._option.flags[mujoco.mjtVisFlag.mjVIS_TEXTURE] = textures
+        self._scene.flags[mujoco.mjtRndFlag.mjRND_SKYBOX] = textures
         self._camera = mujoco.MjvCamera()
         self._camera.type = mujoco.mjtCamera.mjCAMERA_FIXED
         self._rect = mujoco.MjrRect(0, 0, width, height)
         self._pixels = np.empty((height, width, 3), np.uint8)
 
-    def render(self, data: mujoco.MjData, camera_id: int) -> np.ndarray:
-        """The (height, width, 3) uint8 image of camera `camera_id` for `data` (forwarded)."""
+    def render(
+        self, data: mujoco.MjData, camera_id: int, model: mujoco.MjModel | None = None
+    ) -> np.ndarray:
+        """The (height, width, 3) uint8 image of camera `camera_id` for `data` (forwarded),
+        upright (row 0 at the top). `model`: a copy of the renderer's model with other
+        poses or colours (same meshes and textures), where `data` belongs to one."""
         self._ctx.make_current()
         self._camera.fixedcamid = camera_id
         mujoco.mjv_updateScene(
-            self.model,
+            self.model if model is None else model,
             data,
             self._option,
             None,

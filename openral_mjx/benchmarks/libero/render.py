@@ -1,0 +1,168 @@
+"""The LIBERO mirror's camera images against LIBERO's own, on the same states.
+
+LIBERO (in its worker environment, robosuite 1.4 on mujoco 3.8.1) plays a fixed action
+sequence from an initial state and hands back its observation images (``image``: agentview,
+``wrist_image``: robot0_eye_in_hand, upright as the host scene gives them) with the state each
+was drawn from. The mirror (`libero_mjx` with ``image_size``, backend `c`: MuJoCo's OpenGL
+renderer in this environment) draws the same states. Per camera: the share of pixels whose
+every channel is within 8/255, the mean absolute error (in 1/255) and SSIM (Wang et al. 2004).
+
+``python -m openral_mjx.benchmarks.libero.render --tasks libero_spatial/0 --seeds 0 1 2``
+prints the table (markdown) and writes its rows as JSON with ``--out``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from scipy import ndimage
+
+from openral_mjx.benchmarks.libero.assets import TIMEOUT_S, task_worker
+from openral_mjx.benchmarks.libero.mirror import LiberoMjx, LiberoMjxOptions
+from openral_mjx.benchmarks.libero.mirror.scene import CAMERAS, camera_images
+from openral_mjx.core.files import write_text_atomic
+
+TOL = 8  # per channel, in 1/255
+SSIM_SIGMA = 1.5  # Wang et al.'s Gaussian window: sigma 1.5, 11 x 11
+SSIM_RADIUS = 5
+
+
+def ssim(a: np.ndarray, b: np.ndarray, data_range: float = 255.0) -> float:
+    """Mean SSIM of two images (H, W) or (H, W, C) (channels averaged), Wang et al. 2004:
+    Gaussian-weighted local means, variances and covariance (sigma 1.5, 11 x 11 window),
+    K1 = 0.01, K2 = 0.03, averaged over the windows that fit inside the image (all pixels,
+    borders reflected, where none fits)."""
+    if a.shape != b.shape:
+        raise ValueError(f"ssim of images of different shapes {a.shape} and {b.shape}")
+    x, y = np.asarray(a, np.float64), np.asarray(b, np.float64)
+    if x.ndim == 2:
+        x, y = x[..., None], y[..., None]
+    c1, c2 = (0.01 * data_range) ** 2, (0.03 * data_range) ** 2
+    truncate = SSIM_RADIUS / SSIM_SIGMA
+    sigma = (SSIM_SIGMA, SSIM_SIGMA, 0.0)  # per channel, no mixing
+
+    def blur(z: np.ndarray) -> np.ndarray:
+        return ndimage.gaussian_filter(z, sigma, mode="reflect", truncate=truncate)
+
+    mx, my = blur(x), blur(y)
+    vx, vy, cxy = blur(x * x) - mx * mx, blur(y * y) - my * my, blur(x * y) - mx * my
+    num = (2 * mx * my + c1) * (2 * cxy + c2)
+    den = (mx * mx + my * my + c1) * (vx + vy + c2)
+    smap = num / den
+    r = SSIM_RADIUS
+    if min(x.shape[:2]) > 2 * r:
+        smap = smap[r:-r, r:-r]
+    return float(smap.mean())
+
+
+def pixel_agreement(ours: np.ndarray, ref: np.ndarray, tol: int = TOL) -> dict[str, float]:
+    """Images (n, H, W, 3) uint8 against references: the share of pixels with every channel
+    within `tol`/255, the mean absolute error in 1/255, the mean SSIM."""
+    err = np.abs(ours.astype(np.int32) - ref.astype(np.int32))
+    return {
+        "within": float(np.mean(np.all(err <= tol, axis=-1))),
+        "mae": float(err.mean()),
+        "ssim": float(np.mean([ssim(o, r) for o, r in zip(ours, ref, strict=True)])),
+    }
+
+
+def actions_for(seed: int, steps: int) -> np.ndarray:
+    """The fixed action sequence played from seed `seed`: uniform in [-1, 1]^7 (the arm
+    moves several centimetres, the gripper opens and closes)."""
+    return np.random.default_rng(seed).uniform(-1.0, 1.0, (steps, 7))
+
+
+def libero_states(
+    task: str, seeds: Sequence[int], steps: int, every: int, image_size: int, drawn: int
+) -> dict[str, np.ndarray]:
+    """LIBERO's images and drawn states (`TaskExport.camera_states`) at steps 0, `every`,
+    ... `steps` of `actions_for(seed)` from each seed's initial state, stacked."""
+    out: dict[str, list[np.ndarray]] = {}
+    with task_worker(task, image_size) as (worker, _):
+        for seed in seeds:
+            kwargs = {"init": int(seed) % 50, "actions": actions_for(seed, steps), "drawn": drawn}
+            got = worker.call(
+                {"op": "call", "method": "camera_states", "kwargs": kwargs}, TIMEOUT_S
+            )
+            for k, v in got.items():
+                out.setdefault(k, []).append(np.asarray(v)[::every])
+    return {k: np.concatenate(v) for k, v in out.items()}
+
+
+def mirror_images(scene: LiberoMjx, qpos: np.ndarray, qvel: np.ndarray) -> dict[str, np.ndarray]:
+    """The mirror's observation images (uint8, as its observation holds them) of states."""
+
+    def draw(q: jax.Array, v: jax.Array) -> dict[str, jax.Array]:
+        return camera_images(scene.backend.init(q, v).quantities)
+
+    images = jax.jit(jax.vmap(draw))(jnp.asarray(qpos, jnp.float32), jnp.asarray(qvel, jnp.float32))
+    return {k: np.asarray(v) for k, v in images.items()}
+
+
+def task_rows(
+    task: str, seeds: Sequence[int], steps: int = 20, every: int = 10, image_size: int = 128
+) -> list[dict[str, Any]]:
+    """One row per camera of `task`: agreement over seeds x steps 0, `every`, ... `steps`."""
+    scene = LiberoMjx(LiberoMjxOptions(task=task, image_size=image_size), backend="c")
+    try:
+        ref = libero_states(task, seeds, steps, every, image_size, scene.observed_substep - 1)
+        ours = mirror_images(scene, ref["qpos"], ref["qvel"])
+    finally:
+        scene.backend.close()
+    return [
+        {
+            "task": task,
+            "camera": key,
+            "mjcf_camera": cam,
+            "image_size": image_size,
+            "states": len(ref["qpos"]),
+            **pixel_agreement(ours[key], ref[key]),
+        }
+        for key, cam in CAMERAS.items()
+    ]
+
+
+def format_table(rows: Sequence[dict[str, Any]]) -> str:
+    """The pixel agreement table in markdown."""
+    lines = [
+        f"| task | camera | states | pixels within {TOL}/255 | MAE (1/255) | SSIM |",
+        "|---|---|---|---|---|---|",
+    ]
+    for r in rows:
+        lines.append(
+            f"| `{r['task']}` | `{r['camera']}` | {r['states']} | {100 * r['within']:.2f}% | "
+            f"{r['mae']:.2f} | {r['ssim']:.4f} |"
+        )
+    return "\n".join(lines)
+
+
+def main(argv: Sequence[str] | None = None) -> None:
+    ap = argparse.ArgumentParser(
+        prog="python -m openral_mjx.benchmarks.libero.render",
+        description="The mirror's camera images against LIBERO's on the same states.",
+    )
+    ap.add_argument("--tasks", nargs="+", required=True, help="SUITE/INDEX ...")
+    ap.add_argument("--seeds", nargs="+", type=int, default=[0, 1, 2])
+    ap.add_argument("--steps", type=int, default=20, help="actions played per seed")
+    ap.add_argument("--every", type=int, default=10, help="compare every this many steps")
+    ap.add_argument("--image-size", type=int, default=128)
+    ap.add_argument("--out", type=Path, default=None, help="JSON file for the rows")
+    a = ap.parse_args(argv)
+    rows: list[dict[str, Any]] = []
+    for task in a.tasks:
+        rows += task_rows(task, a.seeds, a.steps, a.every, a.image_size)
+        print("\n".join(format_table(rows).splitlines()[-2:]), flush=True)
+        if a.out is not None:
+            write_text_atomic(a.out, json.dumps(rows, indent=1))
+    print(format_table(rows))
+
+
+if __name__ == "__main__":
+    main()

@@ -36,7 +36,7 @@ from openral_mjx.host.pool import RemoteError, Worker, WorkerFailure
 ENV = "lerobot-libero"
 FACTORY = "openral_mjx.benchmarks.libero.export:TaskExport"
 TIMEOUT_S = 900.0
-FORMAT = 6  # bump when `TaskExport.model`'s content changes: older caches are rebuilt
+FORMAT = 7  # bump when `TaskExport.model`'s content changes: older caches are rebuilt
 
 
 def models_root() -> Path:

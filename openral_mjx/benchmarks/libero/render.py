@@ -93,16 +93,22 @@ def libero_states(
             )
             for k, v in got.items():
                 out.setdefault(k, []).append(np.asarray(v)[::every])
+            n = len(out["qpos"][-1])
+            out.setdefault("init", []).append(np.full(n, int(seed) % 50, np.int32))
     return {k: np.concatenate(v) for k, v in out.items()}
 
 
-def mirror_images(scene: LiberoMjx, qpos: np.ndarray, qvel: np.ndarray) -> dict[str, np.ndarray]:
-    """The mirror's observation images (uint8, as its observation holds them) of states."""
+def mirror_images(
+    scene: LiberoMjx, qpos: np.ndarray, qvel: np.ndarray, init: np.ndarray
+) -> dict[str, np.ndarray]:
+    """The mirror's observation images (uint8, as its observation holds them) of states, each
+    with its initial state's fixtures (`init`)."""
 
-    def draw(q: jax.Array, v: jax.Array) -> dict[str, jax.Array]:
-        return camera_images(scene.backend.init(q, v).quantities)
+    def draw(q: jax.Array, v: jax.Array, i: jax.Array) -> dict[str, jax.Array]:
+        return camera_images(scene.backend.init(q, v, scene.model_fields(i)).quantities)
 
-    images = jax.jit(jax.vmap(draw))(jnp.asarray(qpos, jnp.float32), jnp.asarray(qvel, jnp.float32))
+    f32 = lambda x: jnp.asarray(x, jnp.float32)  # noqa: E731
+    images = jax.jit(jax.vmap(draw))(f32(qpos), f32(qvel), jnp.asarray(init, jnp.int32))
     return {k: np.asarray(v) for k, v in images.items()}
 
 
@@ -113,7 +119,7 @@ def task_rows(
     scene = LiberoMjx(LiberoMjxOptions(task=task, image_size=image_size), backend="c")
     try:
         ref = libero_states(task, seeds, steps, every, image_size, scene.observed_substep - 1)
-        ours = mirror_images(scene, ref["qpos"], ref["qvel"])
+        ours = mirror_images(scene, ref["qpos"], ref["qvel"], ref["init"])
     finally:
         scene.backend.close()
     return [

@@ -284,8 +284,13 @@ class LiberoMjx(Scene):
         del key  # LIBERO's protocol draws nothing: the initial state is the seed's
         return self.reset_from(jnp.asarray(seed) % self.n_init_states)
 
+    def model_fields(self, init: jax.Array) -> dict[str, jax.Array]:
+        """The per-env model fields of initial state `init`: its fixtures' poses
+        (`fixture_fields`; empty where the task's fixtures never move)."""
+        return {k: table[init] for k, table in self._fixtures.items()}
+
     def reset_from(self, init: jax.Array) -> State:
-        fields = {k: table[init] for k, table in self._fixtures.items()}
+        fields = self.model_fields(init)
         physics = self.backend.init(self._init_qpos[init], self._init_qvel[init], fields)
         controller = ControllerState(
             goal_pos=jnp.zeros(3, jnp.float32),  # every control step sets it

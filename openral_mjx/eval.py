@@ -18,7 +18,7 @@ import re
 import sys
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Literal
 
 import tyro
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
@@ -144,6 +144,10 @@ class EvalArgs:
     """Run as this many processes on this host, each driving an equal share of the GPUs, as one
     job (jax.distributed): on warp, one process per GPU scales where one process for all does
     not (see docs/gpu.md)."""
+    distributed: Literal["auto"] | None = None
+    """auto: this process is one of a job that a cluster's launcher started (srun, mpirun; one
+    process per GPU), joined through JAX's detection of the launcher's environment; the seeds
+    shard over every process's devices and process 0 alone prints and writes (docs/backends.md)."""
     task_processes: int = 1
     """With --suite: run this many tasks at once, one process each. On one GPU it pays only
     under NVIDIA's MPS daemon (nvidia-cuda-mps-control -d): 16 MetaWorld tasks at 1,000 envs
@@ -255,6 +259,8 @@ def validate(args: EvalArgs) -> EvalPlan:
     POLICIES.get(args.policy.partition(":")[0])
     if args.processes != 1:
         _check_processes(args)
+    if args.distributed is not None:
+        _check_distributed(args)
     backend = resolve_scene_backend(args.scene, args.backend)
     options = _scene_options(args)
     spec = _run_spec(args, backend)
@@ -339,6 +345,7 @@ def _decide_rule(args: EvalArgs, baseline: EvalReport | None) -> PairedRule | No
             ("--sweep", args.sweep is not None),
             ("--resume", args.resume),
             ("--processes", args.processes != 1),
+            ("--distributed", args.distributed is not None),
         )
         if on
     ]
@@ -435,6 +442,7 @@ def _check_randomize(args: EvalArgs, want_video: bool) -> None:
             ("--frames", args.frames > 0),
             ("--compare-with", args.compare_with is not None),
             ("--processes", args.processes != 1),
+            ("--distributed", args.distributed is not None),
         )
         if on
     ]
@@ -463,13 +471,15 @@ def _scene_options(args: EvalArgs) -> dict:
     return options
 
 
-def _check_processes(args: EvalArgs) -> None:
-    """What a job of several processes cannot do, refused before any starts."""
-    processes.check_count(args.processes)
+def _check_processes(args: EvalArgs, job: str | None = None) -> None:
+    """What a job of several processes cannot do, refused before any starts (`job`: the flag
+    that asked for one, default --processes N)."""
+    if job is None:
+        processes.check_count(args.processes)
+        job = f"--processes {args.processes}"
     if args.backend not in ("mjx", "warp"):
         raise ConfigError(
-            f"--processes {args.processes} shards envs over GPUs: give --backend mjx or warp, "
-            f"not {args.backend!r}"
+            f"{job} shards envs over GPUs: give --backend mjx or warp, not {args.backend!r}"
         )
     extras = [
         flag
@@ -484,7 +494,19 @@ def _check_processes(args: EvalArgs) -> None:
         if on
     ]
     if extras:
-        raise ConfigError(f"--processes {args.processes} does not combine with {', '.join(extras)}")
+        raise ConfigError(f"{job} does not combine with {', '.join(extras)}")
+
+
+def _check_distributed(args: EvalArgs) -> None:
+    """`--distributed auto` joins a job a cluster's launcher started: not with --processes (the
+    launcher starts the processes), what --processes refuses, and only in a launcher's
+    environment (refused here, before JAX waits for peers that will never come)."""
+    if args.processes != 1:
+        raise ConfigError(
+            "--distributed auto joins the processes a cluster's launcher started: drop --processes"
+        )
+    _check_processes(args, "--distributed auto")
+    processes.check_launcher()
 
 
 def _check_suite(args: EvalArgs, want_video: bool) -> None:
@@ -529,6 +551,7 @@ def _reproduce(args: EvalArgs, backend: str, out: Path) -> str:
         ("--contacts-per-env", args.contacts_per_env),
         ("--devices", args.devices),
         ("--processes", args.processes if args.processes != 1 else None),
+        ("--distributed", args.distributed),
         ("--task-processes", args.task_processes if args.task_processes != 1 else None),
         ("--cluster", args.cluster),
         ("--factor-bins", args.factor_bins if args.factor_bins != 5 else None),
@@ -911,13 +934,16 @@ def _listing() -> str:
 
 def run(args: EvalArgs) -> int:
     """validate -> build -> execute -> write -> show; with `--processes N`, validate here and
-    launch N processes that each run the pipeline."""
+    launch N processes that each run the pipeline; with `--distributed auto`, join the job a
+    cluster's launcher started, then run it."""
     if args.list:
         print(_listing())
         return 0
     launcher = args.processes != 1 and processes.rank() is None
+    if args.distributed is not None:
+        _check_distributed(args)  # before joining: a refused process would leave peers waiting
     if not launcher:
-        processes.initialize()  # before anything touches a device
+        processes.initialize(args.distributed)  # before anything touches a device
     plan = validate(args)
     if launcher:
         with signals_raise():  # SIGTERM too ends the job's processes (launch stops them)

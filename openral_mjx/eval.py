@@ -57,6 +57,7 @@ from openral_mjx.scenes import (
     scripted_policy,
 )
 from openral_mjx.scenes.factor_ranges import parse_factors
+from openral_mjx.scenes.host_scene import HostScene
 from openral_mjx.stats import compare_reports, format_breakdown, format_comparison
 from openral_mjx.viz import require_viz
 from openral_mjx.viz.gl import GLUnavailable, camera_id, gl_backend
@@ -157,7 +158,9 @@ class EvalArgs:
     `ray start` runs here; local: one started for this run; HOST:PORT or ray://HOST:PORT),
     each on a GPU where the cluster has GPUs and the backend uses them, else on --threads CPUs
     (default 1). Per seed the same episodes as a local run; the report says where each task
-    ran. Needs the ray extra (docs/cluster.md)."""
+    ran. For a host scene without --suite: its env workers run as Ray actors on the cluster's
+    nodes (one CPU each, one per cluster CPU by default). Needs the ray extra
+    (docs/cluster.md)."""
     out: Path | None = None
     """Report path (default: results/SCENE_POLICY_TIMESTAMP.json)."""
     factor_bins: int = 5
@@ -289,7 +292,7 @@ def validate(args: EvalArgs) -> EvalPlan:
     elif args.task_processes != 1:
         raise ConfigError("--task-processes runs the tasks of a --suite at once: give --suite")
     if args.cluster is not None:
-        _check_cluster(args)
+        _check_cluster(args, backend)
     _check_randomize(args, want_video)
     policy = scripted_policy(args.scene, args.policy)
     if policy != args.policy:
@@ -520,11 +523,14 @@ def _check_suite(args: EvalArgs, want_video: bool) -> None:
     scene_suite(args.scene, args.suite)
 
 
-def _check_cluster(args: EvalArgs) -> None:
-    """`--cluster` fans a suite's tasks out over Ray: it needs --suite and Ray, a valid address,
-    and no local fan-out beside it."""
-    if args.suite is None:
-        raise ConfigError("--cluster runs the tasks of a --suite on Ray workers: give --suite")
+def _check_cluster(args: EvalArgs, backend: str) -> None:
+    """`--cluster` fans a suite's tasks, or a host scene's env workers, out over Ray: it needs
+    one of them and Ray, a valid address, and no local fan-out beside it."""
+    if args.suite is None and backend != "host":
+        raise ConfigError(
+            "--cluster runs the tasks of a --suite, or a host scene's env workers, on Ray "
+            f"workers: give --suite (scene {args.scene!r} runs on {backend})"
+        )
     if args.task_processes != 1 or args.processes != 1:
         raise ConfigError(
             "--cluster runs a suite's tasks on Ray workers: drop --task-processes/--processes"
@@ -598,6 +604,8 @@ def build(plan: EvalPlan, owned: contextlib.ExitStack) -> Built:
         return Built()
     # a lerobot policy's cameras, unless --opt names them (run_evaluation does the same)
     implied = implied_camera_options(args.policy, SCENES.get(args.scene).options_cls, plan.options)
+    # a host scene's env workers as Ray actors: connected first, so they end before Ray does
+    ray = owned.enter_context(cluster.connected(args.cluster)) if args.cluster else None
     scene = build_spec_scene(
         args.scene,
         {**implied, **(plan.options or {})},
@@ -605,6 +613,9 @@ def build(plan: EvalPlan, owned: contextlib.ExitStack) -> Built:
         randomize=args.randomize if args.sweep is None else (),
     )
     owned.callback(scene.close)
+    if ray is not None:
+        assert isinstance(scene, HostScene)  # validate: --cluster without --suite is a host scene
+        scene.on_ray(ray)
     if plan.decide is not None and plan.baseline is not None and plan.baseline.task != scene.task:
         raise ConfigError(
             f"reports are not comparable: task {plan.baseline.task!r} ({args.compare_with}) vs "

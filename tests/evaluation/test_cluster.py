@@ -4,7 +4,9 @@ The `cluster` tests start the cluster once for the module (`ray start --head`, t
 `ray start --address`, one CPU each, token authentication off as two nodes on one machine
 need) and `ray stop` it at the end, also on failure. The suite is two tasks of the MetaWorld
 mirror on `c` with MetaWorld's expert, a few seeds each: split over both nodes, and with one
-worker killed mid-run, it gives per seed what a local run gives. Without Ray they are skipped
+worker killed mid-run, it gives per seed what a local run gives. A host scene's env workers
+run as actors on both nodes with a local run's episodes, and a crashing one fails only its
+own episodes. Without Ray they are skipped
 (`pip install 'openral_mjx[ray]'`), on CI (`CI` set) they fail. The checks of the flag that
 need no cluster run in the default tier.
 """
@@ -224,3 +226,54 @@ def test_interrupt_cancels_the_running_tasks(two_nodes, local_run, monkeypatch):
         assert kept.partial is not None and kept.partial.finished == TASKS[:1]
         assert outcomes(kept) == outcomes(local_run)[: RUN["n_episodes"]]
         assert kept.cluster is not None and [p.part for p in kept.cluster.parts] == TASKS[:1]
+
+
+HOST_RUN = ("--scene", "metaworld", "--task", "reach-v3", "--policy", "metaworld-expert")
+HOST_RUN += ("--n-envs", "2", "--n-episodes", "4", "--max-steps", "40", "--batching", "chunks")
+
+
+@pytest.mark.cluster
+def test_host_scene_workers_as_actors_equal_local_workers(two_nodes, monkeypatch, capsys, tmp_path):
+    """`eval --cluster` for a host scene (no --suite): its two env workers are Ray actors, one
+    per node, each in its node's MetaWorld worker environment; per seed the episodes equal
+    those of two local worker processes."""
+    reports = {}
+    for name, extra in (("local", ("--opt", "n_workers=2")), ("ray", ("--cluster", two_nodes))):
+        out = tmp_path / f"{name}.json"
+        code, _stdout, err = run_cli(monkeypatch, capsys, *HOST_RUN, *extra, "--out", str(out))
+        assert code == 0, err
+        reports[name] = load_report(out)
+    local, ray = reports["local"], reports["ray"]
+    assert len(outcomes(ray)) == 4 and outcomes(ray) == outcomes(local)
+    assert all(e.metadata.get("error") is None for e in ray.episodes)
+    backend = ray.options["backend"]
+    assert backend["workers"] == 2 and len(backend["ray_nodes"]) == 2, backend  # both nodes
+    assert "ray_nodes" not in local.options["backend"]
+    assert "worker processes on Ray" in ray.device
+
+
+@pytest.mark.cluster
+def test_a_crashed_actor_worker_fails_only_its_own_episodes(
+    two_nodes, monkeypatch, capsys, tmp_path
+):
+    """Fault isolation per episode is a local run's: on `point_reach`, seed 1 crashes its
+    worker process at its third step; worker 0's envs (seeds 0 and 1) fail with the crash,
+    worker 0's actor is replaced for the next chunk, and every other seed equals a clean run."""
+    common = ("--scene", "point_reach", "--policy", "random", "--n-envs", "4")
+    common += ("--n-episodes", "8", "--max-steps", "6", "--batching", "chunks")
+    fault = ("--opt", "fault=crash", "fault_init_state=1", "fault_step=2")
+    reports = {}
+    for name, extra in (("clean", ("--opt", "n_workers=2")), ("ray", fault)):
+        out = tmp_path / f"{name}.json"
+        code, _stdout, err = run_cli(
+            monkeypatch, capsys, *common, *extra, "--cluster", two_nodes, "--out", str(out)
+        )
+        assert code == 0, err
+        reports[name] = load_report(out)
+    assert "on Ray" in reports["ray"].device and "on Ray" in reports["clean"].device
+    failed = [e.metadata["seed"] for e in reports["ray"].episodes if e.metadata["error"]]
+    assert failed == [0, 1]
+    for ep in reports["ray"].episodes[:2]:
+        assert not ep.success and "worker 0 exited (exit code 3)" in ep.metadata["error"]
+    rest = [o for o in outcomes(reports["ray"]) if o[1] not in (0, 1)]
+    assert rest == [o for o in outcomes(reports["clean"]) if o[1] not in (0, 1)]

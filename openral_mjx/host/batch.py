@@ -70,7 +70,8 @@ class EnvBatch:
         self.config = config
         self.messages: list[str] = []
         self._workers: list[Worker | RayWorker | None] = []
-        self._ray: tuple[ModuleType, str] | None = None  # (ray, worker environment) if on Ray
+        # on Ray: (ray, the worker environment, the cluster's CPUs when it was given)
+        self._ray: tuple[ModuleType, str, int] | None = None
         self.nodes: list[str] = []  # per worker on Ray: its node, "IP (node ID start)"
         self._blocks: list[list[int]] = []
         self._n = 0
@@ -98,7 +99,7 @@ class EnvBatch:
         by default as many as the cluster has CPUs."""
         self._stop()
         self._n = 0  # the next reset lays the slots out again, over the cluster's workers
-        self._ray = (ray, env_name)
+        self._ray = (ray, env_name, int(ray.cluster_resources().get("CPU", 1)))
 
     def workers_for(self, n: int) -> int:
         """Worker processes for `n` envs: --opt n_workers, else one per core of this machine
@@ -106,7 +107,7 @@ class EnvBatch:
         if self.config.n_workers:
             cores = self.config.n_workers
         elif self._ray is not None:
-            cores = int(self._ray[0].cluster_resources().get("CPU", 1))
+            cores = self._ray[2]
         else:
             cores = default_workers()
         return max(1, min(n, cores))
@@ -117,7 +118,7 @@ class EnvBatch:
         if self._ray is None:
             worker = Worker(c.python, c.env, self._logs / f"worker{w}.log", name=f"worker {w}")
         else:
-            ray, env_name = self._ray
+            ray, env_name, _ = self._ray
             deadlines = (c.step_timeout_s, c.reset_timeout_s)
             worker = RayWorker(ray, env_name, c.env, f"worker {w}", deadlines)
             self.nodes[w] = worker.where()

@@ -113,6 +113,7 @@ class RayWorker:
         except ray.exceptions.RayError as e:
             self.kill()
             raise WorkerFailure(f"{self.name} lost its Ray actor: {_first(e)}") from None
+        self._pending = None  # answered (on Ctrl-C in `ray.get` it stays set: see `close`)
         if status == "remote":
             raise RemoteError(value, trace)
         if status == "failure":
@@ -140,10 +141,11 @@ class RayWorker:
             raise WorkerFailure(f"{self.name}: its actor could not start: {_first(e)}") from None
 
     def close(self, timeout: float = 5.0) -> None:
-        """Ask the worker to finish, then end the actor."""
-        if self._alive:
+        """Ask the worker to finish, then end the actor; one still serving a request (a run
+        stopped mid-step) is ended at once, not waited for."""
+        if self._alive and self._pending is None:
             with contextlib.suppress(Exception):  # closing: the actor goes either way
-                self._ray.get(self._actor.close.remote(), timeout=timeout + TRANSPORT_S)
+                self._ray.get(self._actor.close.remote(), timeout=timeout)
         self.kill()
 
     def kill(self) -> None:

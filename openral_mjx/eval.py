@@ -18,7 +18,7 @@ import re
 import sys
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Literal
 
 import tyro
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
@@ -58,6 +58,7 @@ from openral_mjx.scenes import (
     scripted_policy,
 )
 from openral_mjx.scenes.factor_ranges import parse_factors
+from openral_mjx.scenes.host_scene import HostScene
 from openral_mjx.stats import compare_reports, format_breakdown, format_comparison
 from openral_mjx.viz import require_viz
 from openral_mjx.viz.plots import save_png, sweep_curve, write_plots
@@ -144,6 +145,10 @@ class EvalArgs:
     """Run as this many processes on this host, each driving an equal share of the GPUs, as one
     job (jax.distributed): on warp, one process per GPU scales where one process for all does
     not (see docs/gpu.md)."""
+    distributed: Literal["auto"] | None = None
+    """auto: this process is one of a job that a cluster's launcher started (srun, mpirun; one
+    process per GPU), joined through JAX's detection of the launcher's environment; the seeds
+    shard over every process's devices and process 0 alone prints and writes (docs/backends.md)."""
     task_processes: int = 1
     """With --suite: run this many tasks at once, one process each. On one GPU it pays only
     under NVIDIA's MPS daemon (nvidia-cuda-mps-control -d): 16 MetaWorld tasks at 1,000 envs
@@ -153,7 +158,9 @@ class EvalArgs:
     `ray start` runs here; local: one started for this run; HOST:PORT or ray://HOST:PORT),
     each on a GPU where the cluster has GPUs and the backend uses them, else on --threads CPUs
     (default 1). Per seed the same episodes as a local run; the report says where each task
-    ran. Needs the ray extra (docs/cluster.md)."""
+    ran. For a host scene without --suite: its env workers run as Ray actors on the cluster's
+    nodes (one CPU each, one per cluster CPU by default). Needs the ray extra
+    (docs/cluster.md)."""
     out: Path | None = None
     """Report path (default: results/SCENE_POLICY_TIMESTAMP.json)."""
     factor_bins: int = 5
@@ -255,6 +262,8 @@ def validate(args: EvalArgs) -> EvalPlan:
     POLICIES.get(args.policy.partition(":")[0])
     if args.processes != 1:
         _check_processes(args)
+    if args.distributed is not None:
+        _check_distributed(args)
     backend = resolve_scene_backend(args.scene, args.backend)
     options = _scene_options(args)
     spec = _run_spec(args, backend)
@@ -283,7 +292,7 @@ def validate(args: EvalArgs) -> EvalPlan:
     elif args.task_processes != 1:
         raise ConfigError("--task-processes runs the tasks of a --suite at once: give --suite")
     if args.cluster is not None:
-        _check_cluster(args)
+        _check_cluster(args, backend)
     _check_randomize(args, want_video)
     policy = scripted_policy(args.scene, args.policy)
     if policy != args.policy:
@@ -339,6 +348,7 @@ def _decide_rule(args: EvalArgs, baseline: EvalReport | None) -> PairedRule | No
             ("--sweep", args.sweep is not None),
             ("--resume", args.resume),
             ("--processes", args.processes != 1),
+            ("--distributed", args.distributed is not None),
         )
         if on
     ]
@@ -435,6 +445,7 @@ def _check_randomize(args: EvalArgs, want_video: bool) -> None:
             ("--frames", args.frames > 0),
             ("--compare-with", args.compare_with is not None),
             ("--processes", args.processes != 1),
+            ("--distributed", args.distributed is not None),
         )
         if on
     ]
@@ -463,13 +474,15 @@ def _scene_options(args: EvalArgs) -> dict:
     return options
 
 
-def _check_processes(args: EvalArgs) -> None:
-    """What a job of several processes cannot do, refused before any starts."""
-    processes.check_count(args.processes)
+def _check_processes(args: EvalArgs, job: str | None = None) -> None:
+    """What a job of several processes cannot do, refused before any starts (`job`: the flag
+    that asked for one, default --processes N)."""
+    if job is None:
+        processes.check_count(args.processes)
+        job = f"--processes {args.processes}"
     if args.backend not in ("mjx", "warp"):
         raise ConfigError(
-            f"--processes {args.processes} shards envs over GPUs: give --backend mjx or warp, "
-            f"not {args.backend!r}"
+            f"{job} shards envs over GPUs: give --backend mjx or warp, not {args.backend!r}"
         )
     extras = [
         flag
@@ -484,7 +497,19 @@ def _check_processes(args: EvalArgs) -> None:
         if on
     ]
     if extras:
-        raise ConfigError(f"--processes {args.processes} does not combine with {', '.join(extras)}")
+        raise ConfigError(f"{job} does not combine with {', '.join(extras)}")
+
+
+def _check_distributed(args: EvalArgs) -> None:
+    """`--distributed auto` joins a job a cluster's launcher started: not with --processes (the
+    launcher starts the processes), what --processes refuses, and only in a launcher's
+    environment (refused here, before JAX waits for peers that will never come)."""
+    if args.processes != 1:
+        raise ConfigError(
+            "--distributed auto joins the processes a cluster's launcher started: drop --processes"
+        )
+    _check_processes(args, "--distributed auto")
+    processes.check_launcher()
 
 
 def _check_suite(args: EvalArgs, want_video: bool) -> None:
@@ -498,11 +523,14 @@ def _check_suite(args: EvalArgs, want_video: bool) -> None:
     scene_suite(args.scene, args.suite)
 
 
-def _check_cluster(args: EvalArgs) -> None:
-    """`--cluster` fans a suite's tasks out over Ray: it needs --suite and Ray, a valid address,
-    and no local fan-out beside it."""
-    if args.suite is None:
-        raise ConfigError("--cluster runs the tasks of a --suite on Ray workers: give --suite")
+def _check_cluster(args: EvalArgs, backend: str) -> None:
+    """`--cluster` fans a suite's tasks, or a host scene's env workers, out over Ray: it needs
+    one of them and Ray, a valid address, and no local fan-out beside it."""
+    if args.suite is None and backend != "host":
+        raise ConfigError(
+            "--cluster runs the tasks of a --suite, or a host scene's env workers, on Ray "
+            f"workers: give --suite (scene {args.scene!r} runs on {backend})"
+        )
     if args.task_processes != 1 or args.processes != 1:
         raise ConfigError(
             "--cluster runs a suite's tasks on Ray workers: drop --task-processes/--processes"
@@ -529,6 +557,7 @@ def _reproduce(args: EvalArgs, backend: str, out: Path) -> str:
         ("--contacts-per-env", args.contacts_per_env),
         ("--devices", args.devices),
         ("--processes", args.processes if args.processes != 1 else None),
+        ("--distributed", args.distributed),
         ("--task-processes", args.task_processes if args.task_processes != 1 else None),
         ("--cluster", args.cluster),
         ("--factor-bins", args.factor_bins if args.factor_bins != 5 else None),
@@ -575,6 +604,8 @@ def build(plan: EvalPlan, owned: contextlib.ExitStack) -> Built:
         return Built()
     # a lerobot policy's cameras, unless --opt names them (run_evaluation does the same)
     implied = implied_camera_options(args.policy, SCENES.get(args.scene).options_cls, plan.options)
+    # a host scene's env workers as Ray actors: connected first, so they end before Ray does
+    ray = owned.enter_context(cluster.connected(args.cluster)) if args.cluster else None
     scene = build_spec_scene(
         args.scene,
         {**implied, **(plan.options or {})},
@@ -582,6 +613,9 @@ def build(plan: EvalPlan, owned: contextlib.ExitStack) -> Built:
         randomize=args.randomize if args.sweep is None else (),
     )
     owned.callback(scene.close)
+    if ray is not None:
+        assert isinstance(scene, HostScene)  # validate: --cluster without --suite is a host scene
+        scene.on_ray(ray)
     if plan.decide is not None and plan.baseline is not None and plan.baseline.task != scene.task:
         raise ConfigError(
             f"reports are not comparable: task {plan.baseline.task!r} ({args.compare_with}) vs "
@@ -911,13 +945,16 @@ def _listing() -> str:
 
 def run(args: EvalArgs) -> int:
     """validate -> build -> execute -> write -> show; with `--processes N`, validate here and
-    launch N processes that each run the pipeline."""
+    launch N processes that each run the pipeline; with `--distributed auto`, join the job a
+    cluster's launcher started, then run it."""
     if args.list:
         print(_listing())
         return 0
     launcher = args.processes != 1 and processes.rank() is None
+    if args.distributed is not None:
+        _check_distributed(args)  # before joining: a refused process would leave peers waiting
     if not launcher:
-        processes.initialize()  # before anything touches a device
+        processes.initialize(args.distributed)  # before anything touches a device
     plan = validate(args)
     if launcher:
         with signals_raise():  # SIGTERM too ends the job's processes (launch stops them)

@@ -10,6 +10,7 @@ from cli_runs import run_cli
 from openral_mjx import eval as eval_cli
 from openral_mjx.policies import POLICIES
 from openral_mjx.report import load_report
+from openral_mjx.runner import processes
 from openral_mjx.scenes import SCENES
 from openral_mjx.stats import clopper_pearson_interval
 
@@ -207,7 +208,15 @@ def test_task_and_suite_help_come_from_the_registry(monkeypatch, capsys):
             ["--scene", "metaworld", "--suite", "mt10", "--task-processes", "0"],
             "--task-processes must be >= 1, got 0",
         ),
-        (["--cluster", "auto"], "--cluster runs the tasks of a --suite on Ray workers"),
+        (["--cluster", "auto"], "--cluster runs the tasks of a --suite, or a host scene's"),
+        (
+            ["--backend", "mjx", "--distributed", "auto", "--processes", "2"],
+            "--distributed auto joins the processes a cluster's launcher started: drop --processes",
+        ),
+        (
+            ["--backend", "c", "--distributed", "auto"],
+            "--distributed auto shards envs over GPUs: give --backend mjx or warp, not 'c'",
+        ),
         (
             [
                 "--scene",
@@ -245,6 +254,20 @@ def test_bad_input(monkeypatch, capsys, tmp_path, argv, needle):
     assert len(lines) == 1 and lines[0].startswith("error: ") and needle in lines[0], err
     assert "Traceback" not in err
     assert not out_path.exists() and list(tmp_path.iterdir()) == []
+
+
+def test_distributed_outside_a_launchers_job(monkeypatch, capsys, tmp_path):
+    """`--distributed auto` in a process no launcher started: one line naming what was looked
+    for, exit 2, before JAX would wait for peers that never come."""
+    for names in processes.LAUNCHER_VARIABLES.values():
+        for name in names:
+            monkeypatch.delenv(name, raising=False)
+    out = tmp_path / "rep.json"
+    argv = ["--backend", "mjx", "--distributed", "auto", "--out", str(out)]
+    code, _out, err = run_cli(monkeypatch, capsys, *argv)
+    assert code == 2 and len(err.strip().splitlines()) == 1, err
+    assert err.startswith("error: --distributed auto joins a job that a cluster's launcher")
+    assert "SLURM_PROCID" in err and "OMPI_MCA_orte_hnp_uri" in err and not out.exists()
 
 
 def test_config_with_unknown_key(monkeypatch, capsys, tmp_path):

@@ -17,11 +17,13 @@ import os
 import shutil
 import tempfile
 from pathlib import Path
+from types import ModuleType
 from typing import Any
 
 import numpy as np
 
 from openral_mjx.host.pool import RemoteError, Worker, WorkerFailure
+from openral_mjx.host.remote import RayWorker
 
 
 @dataclasses.dataclass(frozen=True)
@@ -67,7 +69,10 @@ class EnvBatch:
     def __init__(self, config: BatchConfig) -> None:
         self.config = config
         self.messages: list[str] = []
-        self._workers: list[Worker | None] = []
+        self._workers: list[Worker | RayWorker | None] = []
+        # on Ray: (ray, the worker environment, the cluster's CPUs when it was given)
+        self._ray: tuple[ModuleType, str, int] | None = None
+        self.nodes: list[str] = []  # per worker on Ray: its node, "IP (node ID start)"
         self._blocks: list[list[int]] = []
         self._n = 0
         self._logs = Path(tempfile.mkdtemp(prefix="openral_mjx_workers_"))
@@ -88,9 +93,35 @@ class EnvBatch:
         self.messages.append(message)
         return len(self.messages)
 
-    def _start(self, w: int) -> Worker:
+    def on_ray(self, ray: ModuleType, env_name: str) -> None:
+        """Start the workers as Ray actors on the connected cluster's nodes from now on, each
+        in that node's copy of worker environment `env_name` (see `openral_mjx.host.remote`);
+        by default as many as the cluster has CPUs."""
+        self._stop()
+        self._n = 0  # the next reset lays the slots out again, over the cluster's workers
+        self._ray = (ray, env_name, int(ray.cluster_resources().get("CPU", 1)))
+
+    def workers_for(self, n: int) -> int:
+        """Worker processes for `n` envs: --opt n_workers, else one per core of this machine
+        (of the cluster on Ray), at most one per env."""
+        if self.config.n_workers:
+            cores = self.config.n_workers
+        elif self._ray is not None:
+            cores = self._ray[2]
+        else:
+            cores = default_workers()
+        return max(1, min(n, cores))
+
+    def _start(self, w: int) -> Worker | RayWorker:
         c = self.config
-        worker = Worker(c.python, c.env, self._logs / f"worker{w}.log", name=f"worker {w}")
+        worker: Worker | RayWorker
+        if self._ray is None:
+            worker = Worker(c.python, c.env, self._logs / f"worker{w}.log", name=f"worker {w}")
+        else:
+            ray, env_name, _ = self._ray
+            deadlines = (c.step_timeout_s, c.reset_timeout_s)
+            worker = RayWorker(ray, env_name, c.env, f"worker {w}", deadlines)
+            self.nodes[w] = worker.where()
         init = {
             "op": "init",
             "factory": "openral_mjx.host.gym_batch:GymBatch",
@@ -110,10 +141,11 @@ class EnvBatch:
         if n == self._n and self._workers:
             return
         self._stop()
-        n_workers = max(1, min(n, self.config.n_workers or default_workers()))
+        n_workers = self.workers_for(n)
         bounds = np.linspace(0, n, n_workers + 1).round().astype(int)
         self._blocks = [list(range(bounds[w], bounds[w + 1])) for w in range(n_workers)]
         self._workers = [None] * n_workers
+        self.nodes = [""] * n_workers if self._ray is not None else []
         self.busy_s = [0.0] * n_workers
         self.busy_total_s = [0.0] * n_workers
         self._n = n

@@ -8,8 +8,9 @@ gathered to every process). Process 0 alone prints and writes reports.
 
 Why: on `warp` one process drives two GPUs at ~1.5x one GPU (Warp launches its kernels from
 Python callbacks, which take turns under the interpreter lock), while one process per GPU
-reaches 2.0x. The same path is what several hosts use (there, a cluster launcher sets the
-coordinator instead of `launch`).
+reaches 2.0x. The same path is what several hosts use: there a cluster's launcher (`srun`,
+`mpirun`) starts the processes, and `initialize("auto")` joins them through JAX's own
+detection of the launcher's environment (or through the three variables below, set by hand).
 """
 
 from __future__ import annotations
@@ -30,11 +31,28 @@ COORDINATOR = "OPENRAL_MJX_COORDINATOR"  # host:port of process 0's coordination
 NUM_PROCESSES = "OPENRAL_MJX_NUM_PROCESSES"
 PROCESS_ID = "OPENRAL_MJX_PROCESS_ID"
 
+# What JAX's detection (`jax._src.clusters`) reads of the launchers it knows, for the refusal
+# when none is found: every variable of one launcher must be set.
+LAUNCHER_VARIABLES = {
+    "Slurm's srun": (
+        "SLURM_JOB_ID",
+        "SLURM_STEP_NODELIST",
+        "SLURM_NTASKS",
+        "SLURM_PROCID",
+        "SLURM_LOCALID",
+    ),
+    "Open MPI's mpirun": ("OMPI_MCA_orte_hnp_uri",),
+    "by hand": (COORDINATOR, NUM_PROCESSES, PROCESS_ID),
+}
+
+_joined: int | None = None  # this process's index in a job it joined from a cluster's launcher
+
 
 def rank() -> int | None:
-    """This process's index among those `launch` started (None outside a launched job)."""
+    """This process's index in its job: one `launch` started, or one a cluster's launcher started
+    and `initialize("auto")` joined (None outside a job)."""
     value = os.environ.get(PROCESS_ID)
-    return None if value is None else int(value)
+    return _joined if value is None else int(value)
 
 
 def is_primary() -> bool:
@@ -42,19 +60,58 @@ def is_primary() -> bool:
     return not rank()
 
 
-def initialize() -> None:
-    """Join the job `launch` started (no-op outside one). Call before anything uses JAX's
+def launcher() -> str | None:
+    """The cluster launcher whose environment this process runs in, as JAX's detection names it
+    (`slurm`, `ompi`, ...), `env` for the three variables above, or None. Imports JAX (its
+    registry of launchers has no public name) but starts no backend."""
+    if all(name in os.environ for name in (COORDINATOR, NUM_PROCESSES, PROCESS_ID)):
+        return "env"
+    from jax._src import clusters
+
+    for env in clusters.ClusterEnv._cluster_types:
+        if not env.opt_in_only_method and env.is_env_present():
+            return env.name
+    return None
+
+
+def check_launcher() -> str:
+    """The launcher found (see `launcher`); a one-line `ConfigError` naming the variables looked
+    for where there is none."""
+    found = launcher()
+    if found is None:
+        looked = "; ".join(f"{who}: {', '.join(v)}" for who, v in LAUNCHER_VARIABLES.items())
+        raise ConfigError(
+            "--distributed auto joins a job that a cluster's launcher started, but this process "
+            f"has no launcher's environment (looked for {looked}); start it with srun or mpirun, "
+            "or use --processes N on one host"
+        )
+    return found
+
+
+def initialize(distributed: str | None = None) -> None:
+    """Join this process's job: one `launch` started (its variables set), or with
+    `distributed="auto"` one a cluster's launcher started, through `jax.distributed.initialize`'s
+    own detection (Slurm, Open MPI, ...); a no-op otherwise. Call before anything uses JAX's
     devices: the distributed runtime must come up before the backends do."""
-    if rank() is None:
+    global _joined
+    if os.environ.get(PROCESS_ID) is None and distributed is None:
         return
+    found = check_launcher() if os.environ.get(PROCESS_ID) is None else "env"
     import jax
 
     jax.config.update("jax_cpu_collectives_implementation", "gloo")  # for CPU-only jobs
-    jax.distributed.initialize(
-        coordinator_address=os.environ[COORDINATOR],
-        num_processes=int(os.environ[NUM_PROCESSES]),
-        process_id=int(os.environ[PROCESS_ID]),
-    )
+    if found == "env":
+        jax.distributed.initialize(
+            coordinator_address=os.environ[COORDINATOR],
+            num_processes=int(os.environ[NUM_PROCESSES]),
+            process_id=int(os.environ[PROCESS_ID]),
+        )
+        return
+    # Coordinator (the launcher's first host), process count and index come from the launcher's
+    # variables; on GPUs JAX gives each process the GPU of its local rank unless
+    # JAX_LOCAL_DEVICE_IDS says otherwise (one process per GPU: the layout warp scales with).
+    jax.distributed.initialize()
+    _joined = jax.process_index()
 
 
 def finish() -> None:

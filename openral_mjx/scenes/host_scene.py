@@ -21,7 +21,9 @@ lands in their metadata) and the rest of the batch goes on.
 from __future__ import annotations
 
 import dataclasses
+from collections import Counter
 from collections.abc import Callable, Mapping
+from types import ModuleType
 from typing import Any
 
 import jax
@@ -30,7 +32,7 @@ import numpy as np
 
 from openral_mjx.core.errors import ConfigError
 from openral_mjx.core.options import check
-from openral_mjx.host.batch import BatchConfig, EnvBatch, default_workers
+from openral_mjx.host.batch import BatchConfig, EnvBatch
 from openral_mjx.host.pool import RemoteError, WorkerFailure, host_callback
 from openral_mjx.scenes.base import Scene, State
 
@@ -135,11 +137,12 @@ class HostBackend:
         """Nothing to build: workers start in `HostScene.prepare`."""
 
     def n_workers(self, n_envs: int) -> int:
-        return max(1, min(n_envs, self._spec.batch.n_workers or default_workers()))
+        return self._batch.workers_for(n_envs)
 
     def device_label(self) -> str:
         n = self._batch.n or 1
-        return f"cpu: {self.n_workers(n)} worker processes ({self._env_name} environment)"
+        where = " on Ray" if self._batch.nodes else ""
+        return f"cpu: {self.n_workers(n)} worker processes{where} ({self._env_name} environment)"
 
     def describe(self) -> dict[str, Any]:
         b = self._spec.batch
@@ -150,6 +153,8 @@ class HostBackend:
             "factory": b.factory,
             "workers": self.n_workers(self._batch.n or 1),
             "step_timeout_s": b.step_timeout_s,
+            # on Ray: how many workers ran on each node (by IP), the last layout's
+            **({"ray_nodes": dict(Counter(self._batch.nodes))} if self._batch.nodes else {}),
         }
 
 
@@ -169,6 +174,7 @@ class HostScene(Scene):
         self.host_spec = spec
         self.name, self.task, self.robot_name = spec.name, spec.task, spec.robot
         self.options = options
+        self.env_name = env_name
         self.batch = EnvBatch(dataclasses.replace(spec.batch, python=python))
         self.backend = HostBackend(spec, self.batch, python, env_name)  # type: ignore[assignment]
 
@@ -321,6 +327,10 @@ class HostScene(Scene):
                 f"scene {self.name!r}: its workers could not start: {e} (worker logs in "
                 f"{self.batch.log_dir})"
             ) from None
+
+    def on_ray(self, ray: ModuleType) -> None:
+        """Run the workers as Ray actors on the connected cluster (see `EnvBatch.on_ray`)."""
+        self.batch.on_ray(ray, self.env_name)
 
     def close(self) -> None:
         self.batch.close()

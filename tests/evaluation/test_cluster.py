@@ -4,7 +4,9 @@ The `cluster` tests start the cluster once for the module (`ray start --head`, t
 `ray start --address`, one CPU each, token authentication off as two nodes on one machine
 need) and `ray stop` it at the end, also on failure. The suite is two tasks of the MetaWorld
 mirror on `c` with MetaWorld's expert, a few seeds each: split over both nodes, and with one
-worker killed mid-run, it gives per seed what a local run gives. Without Ray they are skipped
+worker killed mid-run, it gives per seed what a local run gives. A host scene's env workers
+run as actors on both nodes with a local run's episodes, and one that crashes, or whose
+actor is killed, fails only its own episodes. Without Ray they are skipped
 (`pip install 'openral_mjx[ray]'`), on CI (`CI` set) they fail. The checks of the flag that
 need no cluster run in the default tier.
 """
@@ -224,3 +226,95 @@ def test_interrupt_cancels_the_running_tasks(two_nodes, local_run, monkeypatch):
         assert kept.partial is not None and kept.partial.finished == TASKS[:1]
         assert outcomes(kept) == outcomes(local_run)[: RUN["n_episodes"]]
         assert kept.cluster is not None and [p.part for p in kept.cluster.parts] == TASKS[:1]
+
+
+HOST_RUN = ("--scene", "metaworld", "--task", "reach-v3", "--policy", "metaworld-expert")
+HOST_RUN += ("--n-envs", "2", "--n-episodes", "4", "--max-steps", "40", "--batching", "chunks")
+
+
+@pytest.mark.cluster
+def test_host_scene_workers_as_actors_equal_local_workers(two_nodes, monkeypatch, capsys, tmp_path):
+    """`eval --cluster` for a host scene (no --suite): its two env workers are Ray actors, one
+    per node, each in its node's MetaWorld worker environment; per seed the episodes equal
+    those of two local worker processes."""
+    reports = {}
+    for name, extra in (("local", ("--opt", "n_workers=2")), ("ray", ("--cluster", two_nodes))):
+        out = tmp_path / f"{name}.json"
+        code, _stdout, err = run_cli(monkeypatch, capsys, *HOST_RUN, *extra, "--out", str(out))
+        assert code == 0, err
+        reports[name] = load_report(out)
+    local, ray = reports["local"], reports["ray"]
+    assert len(outcomes(ray)) == 4 and outcomes(ray) == outcomes(local)
+    assert all(e.metadata.get("error") is None for e in ray.episodes)
+    backend = ray.options["backend"]
+    assert backend["workers"] == 2 and len(backend["ray_nodes"]) == 2, backend  # both nodes
+    assert "ray_nodes" not in local.options["backend"]
+    assert "worker processes on Ray" in ray.device
+
+
+ACTOR_CALL = b"ray::_WorkerActor.call"  # an env worker's actor's title while it serves a request
+
+
+def _kill_stuck_actor(killed: list[int], stop: threading.Event, after_s: float) -> None:
+    """SIGKILL the first env worker actor seen serving one request for `after_s` on end (the
+    one whose env hangs: the others answer in milliseconds)."""
+    since: dict[int, float] = {}
+    while not stop.is_set() and not killed:
+        now, busy = time.monotonic(), set()
+        for proc in Path("/proc").iterdir():
+            with contextlib.suppress(OSError):
+                if proc.name.isdigit() and (proc / "cmdline").read_bytes().startswith(ACTOR_CALL):
+                    busy.add(int(proc.name))
+        since = {pid: since.get(pid, now) for pid in busy}
+        for pid, start in since.items():
+            if now - start >= after_s:
+                with contextlib.suppress(ProcessLookupError):
+                    os.kill(pid, signal.SIGKILL)
+                    killed.append(pid)
+                break
+        time.sleep(0.05)
+
+
+@pytest.mark.cluster
+@pytest.mark.parametrize(
+    "fault,kill,needle",
+    [
+        ("crash", False, "worker 0 exited (exit code 3)"),
+        ("hang", True, "worker 0 lost its Ray actor"),
+    ],
+)
+def test_a_failed_actor_worker_fails_only_its_own_episodes(
+    two_nodes, monkeypatch, capsys, tmp_path, fault, kill, needle
+):
+    """Fault isolation per episode is a local run's: on `point_reach`, seed 1's env crashes its
+    worker process at its third step, or hangs there and its actor's process is killed (as when
+    a node is lost). Worker 0's envs (seeds 0 and 1) fail with that error, a new actor takes
+    worker 0's envs for the next chunk, and every other seed equals a clean run."""
+    common = ("--scene", "point_reach", "--policy", "random", "--n-envs", "4")
+    common += ("--n-episodes", "8", "--max-steps", "6", "--batching", "chunks")
+    common += ("--cluster", two_nodes)
+    faulty = ("--opt", f"fault={fault}", "fault_init_state=1", "fault_step=2", "step_timeout_s=30")
+    killed: list[int] = []
+    reports = {}
+    for name, extra in (("clean", ()), ("faulty", faulty)):
+        out = tmp_path / f"{name}.json"
+        stop = threading.Event()
+        killer = threading.Thread(target=_kill_stuck_actor, args=(killed, stop, 2.0), daemon=True)
+        if kill and name == "faulty":
+            killer.start()
+        try:
+            code, _stdout, err = run_cli(monkeypatch, capsys, *common, *extra, "--out", str(out))
+        finally:
+            stop.set()
+            if killer.is_alive():
+                killer.join(timeout=10)
+        assert code == 0, err
+        reports[name] = load_report(out)
+    assert len(killed) == int(kill)
+    assert "on Ray" in reports["faulty"].device and "on Ray" in reports["clean"].device
+    failed = [e.metadata["seed"] for e in reports["faulty"].episodes if e.metadata["error"]]
+    assert failed == [0, 1]
+    for ep in reports["faulty"].episodes[:2]:
+        assert not ep.success and needle in ep.metadata["error"], ep.metadata["error"]
+    rest = [o for o in outcomes(reports["faulty"]) if o[1] not in (0, 1)]
+    assert rest == [o for o in outcomes(reports["clean"]) if o[1] not in (0, 1)]

@@ -37,3 +37,52 @@ def test_rank_outside_a_job(monkeypatch):
     processes.initialize()  # no-op outside a job
     monkeypatch.setenv(processes.PROCESS_ID, "1")
     assert processes.rank() == 1 and not processes.is_primary()
+
+
+SLURM = {
+    "SLURM_JOB_ID": "4242",
+    "SLURM_STEP_NODELIST": "node[001-002]",
+    "SLURM_NTASKS": "2",
+    "SLURM_PROCID": "1",
+    "SLURM_LOCALID": "0",
+}
+
+
+@pytest.fixture
+def no_launcher(monkeypatch: pytest.MonkeyPatch) -> pytest.MonkeyPatch:
+    """An environment no launcher started (whatever this machine's own has)."""
+    for names in processes.LAUNCHER_VARIABLES.values():
+        for name in names:
+            monkeypatch.delenv(name, raising=False)
+    monkeypatch.delenv("KUBERNETES_SERVICE_HOST", raising=False)
+    return monkeypatch
+
+
+def test_launcher_found_by_jax_detection(no_launcher):
+    """Slurm's and Open MPI's variables are found by JAX's own detection; the three variables
+    `launch` sets count as a launcher too (for jobs started by hand)."""
+    assert processes.launcher() is None
+    for name, value in SLURM.items():
+        no_launcher.setenv(name, value)
+    assert processes.launcher() == "slurm"
+    no_launcher.delenv("SLURM_LOCALID")  # JAX needs all five
+    assert processes.launcher() is None
+    no_launcher.setenv("OMPI_MCA_orte_hnp_uri", "1531576320.0;tcp://10.96.0.1:34911")
+    assert processes.launcher() == "ompi"
+    for name, value in {
+        processes.COORDINATOR: "head:1234",
+        processes.NUM_PROCESSES: "2",
+        processes.PROCESS_ID: "0",
+    }.items():
+        no_launcher.setenv(name, value)
+    assert processes.launcher() == "env"
+
+
+def test_no_launcher_is_refused_naming_the_variables(no_launcher):
+    with pytest.raises(ConfigError) as refused:
+        processes.initialize("auto")
+    message = str(refused.value)
+    assert "\n" not in message
+    for names in processes.LAUNCHER_VARIABLES.values():
+        assert all(name in message for name in names), message
+    assert processes.rank() is None  # nothing joined

@@ -237,6 +237,11 @@ class CBackend(PhysicsBackend):
         qpos = np.asarray(qpos, np.float64).reshape(-1, self.nq)
         qvel = np.asarray(qvel, np.float64).reshape(-1, self.nv)
         n = qpos.shape[0]
+        # one row per env, also for an unbatched call (then the fields have no lead axis)
+        values = tuple(
+            np.asarray(v).reshape((n, *getattr(self._model, k).shape))
+            for k, v in zip(names, values, strict=True)
+        )
         d = mujoco.MjData(self._model)
         states = np.empty((n, self.nstate))
         sens = np.empty((n, self._nsens))
@@ -245,7 +250,7 @@ class CBackend(PhysicsBackend):
             m = self._model
             if names:
                 with self._lock:
-                    m = self._models(1, names, tuple(np.asarray(v)[i : i + 1] for v in values))[0]
+                    m = self._models(1, names, tuple(v[i : i + 1] for v in values))[0]
             mujoco.mj_resetData(m, d)
             d.qpos[:], d.qvel[:] = qpos[i], qvel[i]
             mujoco.mj_forward(m, d)

@@ -153,6 +153,19 @@ def test_c_model_copies_forget_fields_no_longer_given():
     assert models[1].dof_damping[0] == 4.0
 
 
+def test_c_init_with_fields_unbatched_equals_a_batch_of_one():
+    """`init` called outside `vmap` (a scene's reset of one env) takes fields without a lead
+    axis: the post moved by its field shows in the pose readout, as in a batch of one."""
+    b = make_backend("c", mujoco.MjSpec.from_string(XML), QuantitySpec(bodies=("post",)), 1)
+    m = b.mj_model
+    moved = jnp.asarray(m.body_pos, jnp.float32).at[m.body("post").id, 0].set(0.5)
+    qpos, qvel = jnp.asarray(m.qpos0, jnp.float32), jnp.zeros(m.nv, jnp.float32)
+    one = jax.jit(b.init)(qpos, qvel, {"body_pos": moved})
+    batch = jax.jit(jax.vmap(b.init))(qpos[None], qvel[None], {"body_pos": moved[None]})
+    np.testing.assert_allclose(np.asarray(one.quantities.body_pos)[0, 0], 0.5, atol=1e-6)
+    np.testing.assert_array_equal(one.quantities.body_pos, batch.quantities.body_pos[0])
+
+
 def test_unknown_field_is_a_config_error():
     spec = mujoco.MjSpec.from_string(XML)
     backend = make_backend("c", spec, QuantitySpec(bodies=("ball",)), SUBSTEPS)

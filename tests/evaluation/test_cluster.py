@@ -76,6 +76,7 @@ def test_without_ray_is_one_config_error(monkeypatch):
         cluster.require_ray()
 
 
+@pytest.mark.cluster  # needs Ray, which the default tier does not install
 def test_unreachable_cluster_is_refused_at_once():
     require_ray()
     with socket.socket() as s:  # a port nobody listens on

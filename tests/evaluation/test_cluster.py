@@ -156,26 +156,32 @@ def test_suite_over_two_nodes_equals_a_local_run(
     assert f"--cluster {two_nodes}" in json.loads(out.read_text())["command"]
 
 
-def _running_parts() -> set[int]:
-    """The pids of Ray workers running a part now (Ray titles them after the function)."""
+def _titled(title: bytes) -> set[int]:
+    """The pids of processes whose title starts with `title` (Ray titles a worker after the
+    function or actor method it runs)."""
     pids = set()
     for proc in Path("/proc").iterdir():
         with contextlib.suppress(OSError):
-            if proc.name.isdigit() and (proc / "cmdline").read_bytes().startswith(PART_TITLE):
+            if proc.name.isdigit() and (proc / "cmdline").read_bytes().startswith(title):
                 pids.add(int(proc.name))
     return pids
 
 
-def _kill_first_part(killed: list[int], stop: threading.Event, after_s: float) -> None:
-    """Kill (SIGKILL) the first Ray worker seen running a part, `after_s` after seeing it,
-    if it still runs one then."""
-    seen: dict[int, float] = {}
+def _running_parts() -> set[int]:
+    """The pids of Ray workers running a part now."""
+    return _titled(PART_TITLE)
+
+
+def _kill_busy(title: bytes, killed: list[int], stop: threading.Event, after_s: float) -> None:
+    """SIGKILL the first process seen titled `title` for `after_s` on end: a Ray worker
+    running a part, or an env worker's actor serving one request (the one whose env hangs:
+    the others answer in milliseconds)."""
+    since: dict[int, float] = {}
     while not stop.is_set() and not killed:
-        running = _running_parts()
-        for pid in running:
-            seen.setdefault(pid, time.monotonic())
-        for pid, since in seen.items():
-            if pid in running and time.monotonic() - since >= after_s:
+        now = time.monotonic()
+        since = {pid: since.get(pid, now) for pid in _titled(title)}
+        for pid, start in since.items():
+            if now - start >= after_s:
                 with contextlib.suppress(ProcessLookupError):
                     os.kill(pid, signal.SIGKILL)
                     killed.append(pid)
@@ -190,7 +196,7 @@ def test_killed_worker_runs_its_task_again(two_nodes, local_run, monkeypatch):
     monkeypatch.setattr(suite_module, "scene_suite", lambda scene, suite: TASKS)
     killed: list[int] = []
     stop = threading.Event()
-    killer = threading.Thread(target=_kill_first_part, args=(killed, stop, 2.0), daemon=True)
+    killer = threading.Thread(target=_kill_busy, args=(PART_TITLE, killed, stop, 2.0), daemon=True)
     killer.start()
     try:
         report = suite_module.evaluate_suite(
@@ -256,26 +262,6 @@ def test_host_scene_workers_as_actors_equal_local_workers(two_nodes, monkeypatch
 ACTOR_CALL = b"ray::_WorkerActor.call"  # an env worker's actor's title while it serves a request
 
 
-def _kill_stuck_actor(killed: list[int], stop: threading.Event, after_s: float) -> None:
-    """SIGKILL the first env worker actor seen serving one request for `after_s` on end (the
-    one whose env hangs: the others answer in milliseconds)."""
-    since: dict[int, float] = {}
-    while not stop.is_set() and not killed:
-        now, busy = time.monotonic(), set()
-        for proc in Path("/proc").iterdir():
-            with contextlib.suppress(OSError):
-                if proc.name.isdigit() and (proc / "cmdline").read_bytes().startswith(ACTOR_CALL):
-                    busy.add(int(proc.name))
-        since = {pid: since.get(pid, now) for pid in busy}
-        for pid, start in since.items():
-            if now - start >= after_s:
-                with contextlib.suppress(ProcessLookupError):
-                    os.kill(pid, signal.SIGKILL)
-                    killed.append(pid)
-                break
-        time.sleep(0.05)
-
-
 @pytest.mark.cluster
 @pytest.mark.parametrize(
     "fault,kill,needle",
@@ -300,7 +286,9 @@ def test_a_failed_actor_worker_fails_only_its_own_episodes(
     for name, extra in (("clean", ()), ("faulty", faulty)):
         out = tmp_path / f"{name}.json"
         stop = threading.Event()
-        killer = threading.Thread(target=_kill_stuck_actor, args=(killed, stop, 2.0), daemon=True)
+        killer = threading.Thread(
+            target=_kill_busy, args=(ACTOR_CALL, killed, stop, 2.0), daemon=True
+        )
         if kill and name == "faulty":
             killer.start()
         try:

@@ -11,7 +11,10 @@ outcomes would give (the output says which). ``plan interval``: episodes for a
 cap (``--n-episodes``) of ``eval --decide``'s sequential design, looking every
 ``--looks-every`` seeds (its ``--n-envs``), that decides a ``--difference`` at ``--discordance``
 with ``--power``, computed with the design's own exact boundaries; and the seeds it expects to
-use at that difference and at none.
+use at that difference and at none. Its discordance is stated, or measured by an earlier paired
+run (``--from``: an ``eval --compare-with A.json --decide`` report, over the seeds it ran, or a
+``compare A.json B.json --out C.json`` comparison, over their common seeds); then the cap at
+the upper end of the discordance's interval is given too.
 
 A value out of its range (a rate outside [0, 1], B's rate ``rate + difference`` outside it, a
 discordance the rates cannot produce, alpha or power outside (0, 1)) is one line on stderr
@@ -24,6 +27,7 @@ Example: ``python -m openral_mjx.plan compare --rate 0.6 --difference 0.1 --disc
 from __future__ import annotations
 
 import dataclasses
+import json
 import os
 from collections.abc import Sequence
 from pathlib import Path
@@ -37,6 +41,7 @@ from openral_mjx.report import load_report
 from openral_mjx.stats import (
     INTERVAL_METHODS,
     PLAN_CAP,
+    Comparison,
     PairedDesign,
     Pilot,
     check_confidence,
@@ -46,6 +51,7 @@ from openral_mjx.stats import (
     plan_paired,
 )
 from openral_mjx.stats.decide_planning import format_decide_plan, plan_decide
+from openral_mjx.stats.report_families import SCHEMA as COMPARISON_SCHEMA
 
 MAX_SEEDS = PLAN_CAP  # the search's tables grow with it: ~15 s near 10^6 on 2 cores
 
@@ -90,8 +96,11 @@ class DecideArgs:
 
     difference: float
     """rate_B - rate_A to decide (0.05: five points better; negative: worse)."""
-    discordance: float
-    """Share of seeds on which exactly one policy succeeds (at least |difference|)."""
+    discordance: float | None = None
+    """Share of seeds on which exactly one policy succeeds (at least |difference|); or --from."""
+    from_: Annotated[Path | None, tyro.conf.arg(name="from")] = None
+    """An earlier paired run that measures the discordance: an eval --compare-with A.json
+    --decide report, or a comparison written by compare A.json B.json --out."""
     power: float = 0.8
     """Power wanted: the probability of deciding B better (or worse) if the difference is real."""
     looks_every: int = 256
@@ -118,6 +127,47 @@ def _pilot(paths: tuple[Path, Path]) -> Pilot:
         )
     rc = compare_reports(a, b, mirrored=mirrored(a.scene, b.scene))
     return Pilot.from_comparison(rc.comparison)
+
+
+def _paired_pilot(path: Path) -> Pilot:
+    """The discordance measured by the earlier paired run at `path`: a comparison of two
+    reports (`compare --out`, over their common seeds) or an `eval --decide` report (over
+    the seeds it ran); `ConfigError` naming the file for anything else."""
+    label = str(path)
+    if path.is_file():
+        try:
+            data = json.loads(path.read_text())
+        except (OSError, UnicodeDecodeError, json.JSONDecodeError):
+            data = None  # load_report says what is wrong with it
+        if isinstance(data, dict) and str(data.get("schema_version", "")).startswith(
+            COMPARISON_SCHEMA.partition("/")[0] + "/"
+        ):
+            return _comparison_pilot(data, label)
+    return Pilot.from_decision(load_report(path), label)
+
+
+def _comparison_pilot(data: dict, label: str) -> Pilot:
+    """`Pilot` of a two-report comparison as `compare --out` writes it."""
+    version, kind = data.get("schema_version"), data.get("kind")
+    if version != COMPARISON_SCHEMA:
+        raise ConfigError(
+            f"comparison {label!r} has schema {version!r}; this version reads {COMPARISON_SCHEMA!r}"
+        )
+    if kind != "pair":
+        raise ConfigError(
+            f"comparison {label!r} is of kind {kind!r}, not 'pair': --from needs one discordance, "
+            "from a comparison of two single-task reports"
+        )
+    try:
+        comparison = Comparison(**data["comparison"])
+    except (KeyError, TypeError) as e:
+        raise ConfigError(f"comparison {label!r} has no valid 'comparison' block ({e})") from None
+    if not comparison.paired or comparison.only_a is None or comparison.only_b is None:
+        raise ConfigError(
+            f"comparison {label!r} is unpaired (the reports shared no seeds, or --unpaired): "
+            "the discordance needs both policies on the same seeds"
+        )
+    return Pilot.from_comparison(comparison)
 
 
 def run_compare(args: CompareArgs) -> int:
@@ -164,17 +214,54 @@ def run_interval(args: IntervalArgs) -> int:
 def run_decide(args: DecideArgs) -> int:
     if not 1 <= args.max_seeds <= MAX_SEEDS:
         raise ConfigError(f"--max-seeds must lie in [1, {MAX_SEEDS:,}], got {args.max_seeds}")
-    plan = plan_decide(
-        args.difference,
-        args.discordance,
-        args.power,
-        args.looks_every,
-        args.alpha,
-        args.margin,
-        args.spending,
-        args.max_seeds,
-    )
-    print(format_decide_plan(plan))
+    if args.from_ is not None and args.discordance is not None:
+        raise ConfigError("give --discordance or --from, not both")
+    if args.from_ is None and args.discordance is None:
+        raise ConfigError(
+            "give --discordance (the share of seeds on which exactly one policy succeeds), or "
+            "--from REPORT.json (an earlier paired run that measures it)"
+        )
+
+    def plan(discordance: float):
+        return plan_decide(
+            args.difference,
+            discordance,
+            args.power,
+            args.looks_every,
+            args.alpha,
+            args.margin,
+            args.spending,
+            args.max_seeds,
+        )
+
+    if args.from_ is None:
+        assert args.discordance is not None
+        print(format_decide_plan(plan(args.discordance)))
+        return 0
+    pilot = _paired_pilot(args.from_)
+    # A's measured rate bounds the discordances possible at this difference (checked here)
+    measured = pilot.design(args.difference, alpha=args.alpha)
+    low, high = pilot.interval
+    lines = [
+        format_decide_plan(plan(measured.discordance)),
+        f"discordance: measured on {pilot.seeds:,} paired seeds of {args.from_} (only A "
+        f"{pilot.only_a}, only B {pilot.only_b}; A {100 * measured.rate_a:.1f}%): "
+        f"{100 * pilot.discordance:.1f}%, {round(100 * pilot.confidence)}% Wilson interval "
+        f"[{100 * low:.1f}%, {100 * high:.1f}%]",
+    ]
+    upper = pilot.design(args.difference, alpha=args.alpha, upper=True)
+    if upper.discordance > measured.discordance:
+        cautious = plan(upper.discordance)
+        cap = (
+            f"more than {args.max_seeds:,} seeds"
+            if cautious.design is None
+            else f"cap {cautious.design.cap:,} seeds"
+        )
+        end = f"{100 * upper.discordance:.1f}%"
+        if upper.discordance < high:
+            end = f"{100 * high:.1f}%, at most {end} at these rates"
+        lines.append(f"at the interval's upper end ({end}): {cap}")
+    print("\n".join(lines))
     return 0
 
 

@@ -2,13 +2,16 @@
 and episodes for an interval, each answer the library's; every bad value -> one line, exit 2."""
 
 import dataclasses
+import json
 from pathlib import Path
 
 import numpy as np
 import pytest
 from report_variants import variant
 
+from openral_mjx import compare as compare_cli
 from openral_mjx import plan as plan_cli
+from openral_mjx.evaluation.sequential import PairedRule
 from openral_mjx.report import EvalReport, load_report, save_report
 from openral_mjx.stats import (
     PairedDesign,
@@ -16,7 +19,10 @@ from openral_mjx.stats import (
     episodes_for_halfwidth,
     paired_comparison,
     plan_paired,
+    unpaired_comparison,
 )
+from openral_mjx.stats.decide_planning import format_decide_plan, plan_decide
+from openral_mjx.stats.report_families import SCHEMA as COMPARISON_SCHEMA
 
 SAVED = Path(__file__).parent.parent / "benchmarks/2026-11-23-ci2core/rays/box_c_nodepth.json"
 
@@ -188,8 +194,6 @@ def test_interval_bad_values_are_one_line_exit_2(capsys, argv, needle):
 def test_decide_prints_the_libraries_plan(capsys):
     """`plan decide` is `plan_decide` formatted: the cap, its power, the expected seeds under
     the effect and under none, and the fixed-size test's seeds."""
-    from openral_mjx.stats.decide_planning import format_decide_plan, plan_decide
-
     argv = ["decide", "--difference", "0.2", "--discordance", "0.4", "--looks-every", "20"]
     code, out, err = run_plan(capsys, *argv)
     assert code == 0 and err == ""
@@ -198,3 +202,88 @@ def test_decide_prints_the_libraries_plan(capsys):
     assert out == format_decide_plan(plan) + "\n"
     assert out.startswith(f"cap {plan.design.cap} seeds ({len(plan.design.looks)} looks of 20)")
     assert f"--n-envs 20 --n-episodes {plan.design.cap}" in out
+
+
+def _decide_report(base: EvalReport, a: np.ndarray, b: np.ndarray, chunk: int) -> EvalReport:
+    """B's report of `eval --compare-with A --decide` on these outcomes (looks every `chunk`
+    seeds, cap: A's seeds), as the run writes it: B's episodes up to the deciding look."""
+    rule = PairedRule(a, "a.json", "zero")
+    for n in range(chunk, a.size + 1, chunk):
+        if rule({"success": b[:n]}):
+            break
+    n = rule.looks[-1].n
+    return dataclasses.replace(variant(base, b[:n], policy="other"), decision=rule.info())
+
+
+def test_decide_from_a_decide_report_or_a_comparison(capsys, tmp_path, base):
+    """--from reads the discordance (and A's rate) off an earlier paired run: a --decide
+    report's last look, or compare's JSON of two reports; both give the plan at the
+    discordance counted directly on the outcomes, and the cap at its interval's upper end."""
+    rng = np.random.default_rng(3)
+    a = rng.random(200) < 0.5
+    b = np.where(rng.random(200) < 0.42, ~a, a)  # no real difference: runs to the cap
+    report = _decide_report(base, a, b, 40)
+    assert report.decision is not None and report.decision.decision == "inconclusive"
+    save_report(report, tmp_path / "b_decide.json")
+    pilot = Pilot(200, int((a & ~b).sum()), int((~a & b).sum()), int(a.sum()))
+    plan = plan_decide(0.3, pilot.discordance, looks_every=20)
+    upper = pilot.design(0.3, upper=True).discordance
+    cautious = plan_decide(0.3, upper, looks_every=20)
+    assert plan.design is not None and cautious.design is not None
+    assert cautious.design.cap >= plan.design.cap
+    argv = ["decide", "--difference", "0.3", "--looks-every", "20", "--from"]
+    code, out, err = run_plan(capsys, *argv, str(tmp_path / "b_decide.json"))
+    assert code == 0, err
+    lo, hi = pilot.interval
+    assert out.splitlines() == [
+        *format_decide_plan(plan).splitlines(),
+        f"discordance: measured on 200 paired seeds of {tmp_path / 'b_decide.json'} (only A "
+        f"{pilot.only_a}, only B {pilot.only_b}; A {100 * a.mean():.1f}%): "
+        f"{100 * pilot.discordance:.1f}%, 95% Wilson interval [{100 * lo:.1f}%, {100 * hi:.1f}%]",
+        f"at the interval's upper end ({100 * upper:.1f}%): cap {cautious.design.cap} seeds",
+    ]
+    # the same outcomes as two reports, compared with --out: the same plan
+    pa, pb = _pilot_reports(base, tmp_path, a, b)
+    with pytest.raises(SystemExit) as exc:
+        compare_cli.main([pa, pb, "--out", str(tmp_path / "ab.json")])
+    assert exc.value.code == 0
+    capsys.readouterr()
+    code, out2, err = run_plan(capsys, *argv, str(tmp_path / "ab.json"))
+    assert code == 0, err
+    assert out2 == out.replace(str(tmp_path / "b_decide.json"), str(tmp_path / "ab.json"))
+
+
+def test_decide_from_bad_input(capsys, tmp_path, base):
+    """A missing file, a report without paired outcomes, a comparison that is not of one
+    pair on common seeds, too few discordant seeds, --from with --discordance, or neither:
+    one line naming it, exit 2."""
+    save_report(variant(base, [1, 0] * 20), tmp_path / "plain.json")
+    rng = np.random.default_rng(4)
+    a = rng.random(40) < 0.5
+    save_report(_decide_report(base, a, a.copy(), 20), tmp_path / "agree.json")  # no discordance
+    comparisons = {
+        "suite.json": {"schema_version": COMPARISON_SCHEMA, "kind": "suite"},
+        "unpaired.json": {
+            "schema_version": COMPARISON_SCHEMA,
+            "kind": "pair",
+            "comparison": dataclasses.asdict(unpaired_comparison(5, 10, 7, 10)),
+        },
+        "old.json": {"schema_version": "openral_mjx.comparison/0", "kind": "pair"},
+    }
+    for name, data in comparisons.items():
+        (tmp_path / name).write_text(json.dumps(data))
+    cases = [
+        (["--from", str(tmp_path / "nope.json")], "nope.json' does not exist"),
+        (["--from", str(tmp_path / "plain.json")], "holds no paired outcomes"),
+        (["--from", str(tmp_path / "suite.json")], "of kind 'suite', not 'pair'"),
+        (["--from", str(tmp_path / "unpaired.json")], "unpaired.json' is unpaired"),
+        (["--from", str(tmp_path / "old.json")], "has schema 'openral_mjx.comparison/0'"),
+        (["--from", str(tmp_path / "agree.json")], "disagree on 0 of 40"),
+        (["--from", str(tmp_path / "plain.json"), "--discordance", "0.3"], "not both"),
+        ([], "give --discordance"),
+    ]
+    for argv, needle in cases:
+        code, out, err = run_plan(capsys, "decide", "--difference", "0.1", *argv)
+        lines = err.strip().splitlines()
+        assert code == 2 and out == "" and len(lines) == 1, (argv, err)
+        assert lines[0].startswith("error: ") and needle in lines[0], (argv, err)

@@ -36,6 +36,7 @@ import numpy as np
 from scipy import stats as sps
 
 from openral_mjx.core.errors import ConfigError, unknown
+from openral_mjx.report import EvalReport
 from openral_mjx.stats.comparison import Comparison, mcnemar_exact_pvalue
 from openral_mjx.stats.intervals import episodes_for_halfwidth, wilson_interval
 
@@ -351,6 +352,28 @@ class Pilot:
                 "the reports share no seeds: the discordance needs both policies on the same seeds"
             )
         return cls(c.n_a, int(c.only_a), int(c.only_b), c.successes_a, confidence)
+
+    @classmethod
+    def from_decision(cls, report: EvalReport, label: str, confidence: float = 0.95) -> Pilot:
+        """From an `eval --compare-with A.json --decide` report (`label`: where it was read):
+        the counts of its last look, over the first n seeds of both policies. A's successes
+        there are B's (the report's episodes are those seeds) less only-B plus only-A."""
+        d = report.decision
+        if d is None or not d.looks:
+            raise ConfigError(
+                f"report {label!r} holds no paired outcomes (no `decision` block: it is not an "
+                "eval --compare-with A.json --decide run): give such a report, a comparison "
+                "written by compare A.json B.json --out, or --discordance"
+            )
+        last = d.looks[-1]
+        successes_a = report.successes - last.only_b + last.only_a
+        if report.n_episodes != last.n or not 0 <= successes_a <= last.n:
+            raise ConfigError(
+                f"report {label!r}: its last look covers {last.n} seeds (only A {last.only_a}, "
+                f"only B {last.only_b}) but it holds {report.n_episodes} episodes with "
+                f"{report.successes} successes; the decision does not match its episodes"
+            )
+        return cls(last.n, last.only_a, last.only_b, successes_a, confidence)
 
     @property
     def discordance(self) -> float:

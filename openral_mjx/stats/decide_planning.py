@@ -26,7 +26,7 @@ from scipy import stats as sps
 from openral_mjx.core.errors import ConfigError
 from openral_mjx.stats.paired_sequential import (
     PairedDecisionDesign,
-    _advance,
+    add_binomial,
     boundaries,
     repeated_interval,
 )
@@ -97,7 +97,7 @@ def decisions_given_path(
     out = np.zeros((k_looks, 3))
     mass, prev = np.ones(1), 0
     for k, (d, (lower, upper)) in enumerate(zip(path, bounds, strict=True)):
-        mass, prev = _advance(mass, d - prev, q), d
+        mass, prev = add_binomial(mass, d - prev, q), d
         out[k, 0] = mass[upper:].sum()
         out[k, 1] = mass[: lower + 1].sum() if lower >= 0 else 0.0
         mass[upper:] = 0.0

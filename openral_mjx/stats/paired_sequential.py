@@ -61,11 +61,14 @@ def _pmf(n: int, p: float) -> np.ndarray:
     return out
 
 
-def _advance(mass: np.ndarray, step: int, p: float) -> np.ndarray:
-    """The count's distribution after `step` more trials (a new array)."""
-    if not step:
+def add_binomial(mass: np.ndarray, trials: int, p: float) -> np.ndarray:
+    """The distribution of a count (`mass[i]`: P(count = i), possibly sub-stochastic: runs
+    that crossed a boundary taken out) after `trials` more Bernoulli(`p`) trials: `mass`
+    convolved with Binomial(`trials`, `p`), a new array. The step of every dynamic programme
+    over looks here and in `decide_planning`."""
+    if not trials:
         return mass.copy()
-    return np.clip(signal.convolve(mass, _pmf(step, p)), 0.0, None)
+    return np.clip(signal.convolve(mass, _pmf(trials, p)), 0.0, None)
 
 
 def spent(t: float, alpha: float, spending: str) -> float:
@@ -95,7 +98,7 @@ def boundaries(trials: Sequence[int], p: float, budgets: Sequence[float]) -> lis
     mass, prev = np.ones(1), 0
     used_lo = used_hi = 0.0
     for m, budget in zip(trials, budgets, strict=True):
-        mass, prev = _advance(mass, m - prev, p), m
+        mass, prev = add_binomial(mass, m - prev, p), m
         hi_tail = np.append(np.cumsum(mass[::-1])[::-1], 0.0)  # hi_tail[u] = P(count >= u)
         lo_tail = np.cumsum(mass)  # lo_tail[l] = P(count <= l)
         upper = int(np.argmax(used_hi + hi_tail <= budget + _TOL))
@@ -118,7 +121,7 @@ def crossing(
     mass, prev = np.ones(1), 0
     below = above = 0.0
     for m, (lower, upper) in zip(trials, bounds, strict=True):
-        mass, prev = _advance(mass, m - prev, p), m
+        mass, prev = add_binomial(mass, m - prev, p), m
         above += float(mass[upper:].sum())
         below += float(mass[: lower + 1].sum()) if lower >= 0 else 0.0
         mass[upper:] = 0.0
@@ -323,6 +326,7 @@ __all__ = [
     "SPENDING",
     "Look",
     "PairedDecisionDesign",
+    "add_binomial",
     "boundaries",
     "crossing",
     "repeated_interval",

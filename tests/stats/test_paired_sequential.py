@@ -13,6 +13,7 @@ from openral_mjx.core.errors import ConfigError
 from openral_mjx.stats import PairedDesign, clopper_pearson_interval, mcnemar_power
 from openral_mjx.stats.paired_sequential import (
     PairedDecisionDesign,
+    add_binomial,
     boundaries,
     crossing,
     repeated_interval,
@@ -38,6 +39,23 @@ def exact_rejections(design: PairedDecisionDesign, psi: float, q: float) -> tupl
         low, high = crossing(path, bounds, q)
         worse, better = worse + prob * low, better + prob * high
     return worse, better
+
+
+def test_add_binomial_is_the_binomial_convolution():
+    """Binomial(3, p) plus 4 more trials is Binomial(7, p); a sub-stochastic mass (a crossed
+    tail taken out) is carried as it is; no trials is a copy."""
+    p = 0.3
+    first = sps.binom.pmf(np.arange(4), 3, p)
+    np.testing.assert_allclose(add_binomial(first, 4, p), sps.binom.pmf(np.arange(8), 7, p))
+    cut = first.copy()
+    cut[3] = 0.0
+    expected = (
+        sps.binom.pmf(np.arange(8), 7, p)
+        - first[3] * np.r_[np.zeros(3), sps.binom.pmf(np.arange(5), 4, p)]
+    )
+    np.testing.assert_allclose(add_binomial(cut, 4, p), expected, atol=1e-15)
+    same = add_binomial(first, 0, p)
+    assert same is not first and np.array_equal(same, first)
 
 
 def test_spending_functions():

@@ -199,9 +199,9 @@ class EvalArgs:
     compile_cache: bool = True
     """Use JAX's persistent compilation cache (~/.cache/openral_mjx/jax)."""
     resume: bool = False
-    """Finish the --sweep, --suite or --target-halfwidth run whose partial report (written at
-    Ctrl-C or SIGTERM) is at --out: give the interrupted run's arguments; its finished points,
-    tasks or chunks of seeds are kept, the rest run."""
+    """Finish the --sweep, --suite, --target-halfwidth or --decide run whose partial report
+    (written at Ctrl-C or SIGTERM) is at --out: give the interrupted run's arguments; its
+    finished points, tasks or chunks of seeds are kept, the rest run."""
     list: bool = False
     """List scenes, policies, robots and backends, then exit."""
 
@@ -346,7 +346,6 @@ def _decide_rule(args: EvalArgs, baseline: EvalReport | None) -> PairedRule | No
             ("--max-episodes", args.max_episodes is not None),
             ("--suite", args.suite is not None),
             ("--sweep", args.sweep is not None),
-            ("--resume", args.resume),
             ("--processes", args.processes != 1),
             ("--distributed", args.distributed is not None),
         )
@@ -375,10 +374,11 @@ def _decide_rule(args: EvalArgs, baseline: EvalReport | None) -> PairedRule | No
 def _resume_from(args: EvalArgs, command: str) -> EvalReport | SweepReport:
     """The partial report at --out that --resume picks up, checked to be one this very
     command wrote (same arguments, so the same seeds, options and grid)."""
-    if args.sweep is None and args.suite is None and args.target_halfwidth is None:
+    resumable = (args.sweep, args.suite, args.target_halfwidth, args.decide or None)
+    if all(x is None for x in resumable):
         raise ConfigError(
-            "--resume finishes an interrupted --sweep, --suite or --target-halfwidth run: "
-            "give its arguments"
+            "--resume finishes an interrupted --sweep, --suite, --target-halfwidth or --decide "
+            "run: give its arguments"
         )
     if args.video or args.video_failures or args.frames or args.plots:
         raise ConfigError("--resume writes the report only: drop --video/--frames/--plots")

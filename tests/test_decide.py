@@ -4,9 +4,10 @@ seeds it ran (recomputed here from the report's episodes), over a contiguous pre
 
 import numpy as np
 import pytest
-from cli_runs import run_cli
+from cli_runs import run_cli, stop_at
 from report_variants import variant
 
+from openral_mjx.core.errors import ConfigError
 from openral_mjx.evaluation import evaluate
 from openral_mjx.evaluation.sequential import PairedRule
 from openral_mjx.report import EvalReport, load_report, save_report
@@ -84,3 +85,74 @@ def test_rule_reads_only_the_prefix_it_is_given():
     looks = PairedDecisionDesign.in_chunks(20, 120, margin=0.1).run(a, b)
     assert [x.n for x in rule.looks] == [x.n for x in looks[: len(rule.looks)]]
     assert rule.looks[-1].decision == looks[len(rule.looks) - 1].decision
+
+
+def test_rule_resumes_to_the_uninterrupted_looks():
+    """A rule stopped after two looks writes an "undecided" block (with the repeated interval
+    at its last look); a fresh rule resumed from it and B's outcomes so far replays those
+    looks and takes the rest as the uninterrupted rule does. A changed design or changed
+    baseline outcomes are refused."""
+    rng = np.random.default_rng(0)
+    a, b = rng.random(64) < 0.35, np.zeros(64, bool)
+    whole = PairedRule(a, "a.json", "zero")
+    n = 8
+    while not whole({"success": b[:n]}):
+        n += 8
+    assert whole.looks[-1].decision == "worse" and n == 32
+
+    first = PairedRule(a, "a.json", "zero")
+    assert not first({"success": b[:8]}) and not first({"success": b[:16]})
+    kept = first.info()
+    low, high = first.design.interval([x.only_a + x.only_b for x in first.looks], 0)
+    assert kept.decision == "undecided" and (kept.ci_low, kept.ci_high) == (low, high)
+
+    again = PairedRule(a, "a.json", "zero")
+    again.resume(kept, b[:16])
+    assert not again({"success": b[:24]}) and again({"success": b[:32]})
+    assert again.looks == whole.looks and again.info() == whole.info()
+
+    with pytest.raises(ConfigError, match="margin None, spending obrien-fleming; this run"):
+        PairedRule(a, "a.json", "zero", margin=0.1).resume(kept, b[:16])
+    with pytest.raises(ConfigError, match=r"not those its episodes give against 'a\.json'"):
+        PairedRule(~a, "a.json", "zero").resume(kept, b[:16])
+    with pytest.raises(ConfigError, match="not an undecided --decide run stopped at a look"):
+        PairedRule(a, "a.json", "zero").resume(kept, b[:12])
+
+
+@pytest.mark.heavy  # three episode programs compiled on c (~17 s each on 2 busy cores)
+def test_interrupted_decide_resumes_to_the_uninterrupted_decision(
+    monkeypatch, capsys, tmp_path, base
+):
+    """B (zero) against A succeeding on ~35% of seeds, looks of 8: uninterrupted, B is worse
+    at 32 seeds. Stopped as the third chunk ends (before its look), the partial report keeps
+    the first 16 seeds and their two looks, "undecided"; resumed, the run takes looks 3 and 4
+    and ends as the uninterrupted one: same episodes per seed, looks, decision, interval."""
+    rng = np.random.default_rng(0)
+    save_report(variant(base, (rng.random(64) < 0.35).tolist()), tmp_path / "a.json")
+    argv = [*TINY, "--n-envs", "8", "--batching", "chunks", "--compare-with"]
+    argv += [str(tmp_path / "a.json"), "--decide"]
+    whole, part = tmp_path / "whole.json", tmp_path / "part.json"
+    assert run_cli(monkeypatch, capsys, *argv, "--out", str(whole))[0] == 0
+
+    with monkeypatch.context() as m:
+        stop_at(m, "evaluate_spec", "on_chunk", 24, "SIGINT")
+        code, _, err = run_cli(m, capsys, *argv, "--out", str(part))
+    assert code == 130 and "kept 16 of 64 episodes" in err.strip().splitlines()[-1]
+    kept = load_report(part)
+    assert [e.metadata["seed"] for e in kept.episodes] == list(range(16))
+    assert kept.decision is not None and kept.decision.decision == "undecided"
+    assert [x.n for x in kept.decision.looks] == [8, 16]
+
+    code, out, err = run_cli(monkeypatch, capsys, *argv, "--out", str(part), "--resume")
+    assert code == 0, err
+    resumed, expected = load_report(part), load_report(whole)
+    assert resumed.partial is None and resumed.n_episodes == expected.n_episodes == 32
+    per_seed = [
+        [(e.metadata["seed"], e.success, e.steps, e.total_reward) for e in r.episodes]
+        for r in (resumed, expected)
+    ]
+    assert per_seed[0] == per_seed[1]
+    assert resumed.decision is not None and expected.decision is not None
+    assert resumed.decision.decision == "worse"
+    assert resumed.decision == expected.decision
+    assert "stopped at look 4 of 8, 32 of at most 64 seeds" in out

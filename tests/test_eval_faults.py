@@ -18,7 +18,7 @@ import time
 from pathlib import Path
 
 import pytest
-from cli_runs import run_cli
+from cli_runs import run_cli, stop_at
 
 from openral_mjx import eval as eval_cli
 from openral_mjx.evaluation import suite as suite_module
@@ -30,27 +30,6 @@ ARMS = Path(__file__).parent / "data" / "arms"
 
 COMMON = ["--backend", "c", "--n-envs", "8", "--max-steps", "15", "--threads", "1"]
 SWEEP = [*COMMON, "--no-compile-cache", "--sweep", "friction=0.2:0.6:2"]
-
-
-def stop_at(monkeypatch, name, keyword, at, how):
-    """Wrap `eval_cli.<name>` so that its `keyword` callback stops the run (`how`: raise
-    KeyboardInterrupt, or send this process SIGTERM) when called with first argument `at`."""
-    real = getattr(eval_cli, name)
-
-    def wrapped(*args, **kwargs):
-        inner = kwargs[keyword]
-
-        def hook(i, *rest):
-            if i == at:
-                if how == "SIGTERM":
-                    os.kill(os.getpid(), signal.SIGTERM)
-                    time.sleep(5)  # the handler raises before this ends
-                raise KeyboardInterrupt
-            inner(i, *rest)
-
-        return real(*args, **{**kwargs, keyword: hook})
-
-    monkeypatch.setattr(eval_cli, name, wrapped)
 
 
 @pytest.fixture(scope="module")
@@ -108,7 +87,7 @@ def test_sigterm_keeps_the_finished_point_and_resume_checks_the_command(
     code, _, err = run_cli(monkeypatch, capsys, *SWEEP, "--resume")
     assert code == 2 and err == "error: --resume needs --out: the partial report to pick up from\n"
     code, _, err = run_cli(monkeypatch, capsys, *COMMON, "--out", str(part), "--resume")
-    assert code == 2 and "--resume finishes an interrupted --sweep, --suite or" in err
+    assert code == 2 and "--resume finishes an interrupted --sweep, --suite, --target" in err
     complete = tmp_path / "complete.json"
     save_sweep(dataclasses.replace(load_sweep(part), partial=None), complete)
     code, _, err = run_cli(monkeypatch, capsys, *SWEEP, "--out", str(complete), "--resume")

@@ -202,15 +202,18 @@ def evaluate_spec(
     report (its `arrays` and `timing` are those of the seeds run here).
 
     `decide` (a `PairedRule` over the spec's `n_episodes` seeds) stops the run at the first
-    look that decides B against an earlier report; the report's `decision` says how."""
+    look that decides B against an earlier report; the report's `decision` says how. Stopped
+    by a signal after a look, it raises `Interrupted` as a sequential run does (its `decision`
+    "undecided", with the looks so far), and resumes the same way: the resumed run takes the
+    same looks and reaches the same decision as an uninterrupted one."""
     rule, n_episodes = spec.stopping_rule(), spec.episodes
-    if decide is not None and (rule is not None or resume is not None or n_episodes != decide.cap):
+    if decide is not None and (rule is not None or n_episodes != decide.cap):
         raise ConfigError(
             "a paired decision runs its own looks over its cap of seeds: give n_episodes = its "
-            "cap, and no target_halfwidth or resume"
+            "cap, and no target_halfwidth"
         )
     seed, step_rewards = spec.seed, spec.step_rewards
-    earlier = _resumed(resume, rule)
+    earlier = _resumed(resume, rule, decide)
     owned = contextlib.ExitStack()
     with owned, count_warnings() as warned:  # on an error, close what this call built
         if isinstance(scene, str):
@@ -242,11 +245,12 @@ def evaluate_spec(
         def until(arrays: dict[str, Any]) -> bool:
             """The stopping rule over every seed so far (a resumed run's earlier ones first),
             keeping the finished prefix for a partial report."""
-            if decide is not None:
-                return decide(arrays)
-            assert rule is not None
             seen["arrays"] = arrays
-            return rule({"success": np.concatenate([before, arrays["success"]])})
+            so_far = {"success": np.concatenate([before, arrays["success"]])}
+            if decide is not None:
+                return decide(so_far)
+            assert rule is not None
+            return rule(so_far)
 
         params, _ = pol.init(jax.random.PRNGKey(seed), scene.observation_spec)
         assemble = functools.partial(
@@ -283,11 +287,13 @@ def evaluate_spec(
             )
         except BaseException as e:
             signal = stop_signal(e)
-            if signal is None or rule is None or not (seen or earlier):
+            if signal is None or (rule is None and decide is None) or not (seen or earlier):
                 raise
             arrays = seen.get("arrays", {"success": np.zeros(0, bool)})
             n = len(arrays["success"])
-            chunk = rule.design.looks[0]
+            stopper = rule if rule is not None else decide
+            assert stopper is not None
+            chunk = stopper.design.looks[0]
             looks = -(-n // chunk)
             run_s = time.perf_counter() - start  # compiling included: no chunk timings here
             timing = RunTiming(0.0, run_s, (run_s / max(looks, 1),) * looks, steps, chunk)
@@ -295,7 +301,10 @@ def evaluate_spec(
             episodes = episodes_of(arrays, seeds, timing) if n else []
             total = len(requested)
             partial = PartialInfo(stop_reason(signal), "episodes", len(earlier) + n, total)
-            raise Interrupted(signal, assemble(episodes, timing, partial)) from e
+            kept = assemble(episodes, timing, partial)
+            if decide is not None:
+                kept.decision = decide.info()
+            raise Interrupted(signal, kept) from e
         n_new = len(arrays["success"])
         episodes = episodes_of(arrays, requested[len(earlier) : len(earlier) + n_new], timing)
         report = assemble(episodes, timing)
@@ -305,13 +314,22 @@ def evaluate_spec(
     return Evaluation(report, scene, pol, params, requested, arrays, timing, resources)
 
 
-def _resumed(resume: EvalReport | None, rule: SequentialRule | None) -> list[EpisodeResult]:
-    """The episodes of the partial sequential report a run resumes (none without one), its
-    design fixed at the chunk that report's looks came after."""
+def _resumed(
+    resume: EvalReport | None, rule: SequentialRule | None, decide: PairedRule | None
+) -> list[EpisodeResult]:
+    """The episodes of the partial sequential or paired-decision report a run resumes (none
+    without one), its design fixed at the chunk that report's looks came after."""
     if resume is None:
         return []
+    if decide is not None and resume.decision is not None and resume.partial is not None:
+        success = np.array([e.success for e in resume.episodes], bool)
+        decide.resume(resume.decision, success)
+        return list(resume.episodes)
     if rule is None or resume.sequential is None or resume.partial is None:
-        raise ConfigError("only a partial report of a sequential run (target_halfwidth) resumes")
+        raise ConfigError(
+            "only a partial report of a sequential run (target_halfwidth) or of a paired "
+            "decision (its report's `decision`) resumes"
+        )
     rule.fix(resume.sequential.chunk)
     return list(resume.episodes)
 

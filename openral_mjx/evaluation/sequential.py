@@ -4,6 +4,7 @@ for a paired comparison with an earlier report (`PairedRule`, on `stats.paired_s
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Mapping
 from typing import Any
 
@@ -78,6 +79,8 @@ class PairedRule:
     As `SequentialRule`, the design is fixed at the first look, when the runner's chunk size
     is known and no outcome has been seen. Only the first `n` seeds, all finished, enter a
     look (the runner's prefix rule), so a seed that happened to finish early never does.
+    A run interrupted between looks resumes with `resume`: the design fixed at the
+    interrupted run's chunk and its looks replayed, so the rest falls where it would have.
     """
 
     def __init__(
@@ -107,13 +110,50 @@ class PairedRule:
             raise RuntimeError("the paired design is fixed at the first look")
         return self._design
 
+    def fix(self, chunk: int) -> None:
+        """Fix the design for looks every `chunk` seeds now (see `resume`)."""
+        self._design = PairedDecisionDesign.in_chunks(
+            chunk, self.cap, self.alpha, self.margin, self.spending
+        )
+
+    def resume(self, decision: DecisionInfo, success: np.ndarray) -> None:
+        """Pick up the undecided run whose partial report holds `decision` and B's outcomes
+        `success` on its first seeds: its design (checked to be this rule's) and its
+        looks, replayed on those outcomes (checked to be the report's own). `ConfigError`
+        where they differ, or where the report's looks already decided."""
+        mine = (self.label, self.cap, self.alpha, self.margin, self.spending)
+        theirs = (decision.baseline, decision.cap, decision.alpha, decision.margin)
+        if mine != (*theirs, decision.spending):
+            raise ConfigError(
+                f"--resume: the partial report decided against {decision.baseline!r} with cap "
+                f"{decision.cap}, alpha {decision.alpha:g}, margin {decision.margin}, spending "
+                f"{decision.spending}; this run: {self.label!r}, {self.cap}, {self.alpha:g}, "
+                f"{self.margin}, {self.spending}"
+            )
+        self.fix(decision.chunk)
+        self.looks = []
+        ns = [n for n in self.design.looks if n <= success.size]
+        if ns[-1:] != [success.size] or decision.decision != "undecided":
+            raise ConfigError(
+                f"--resume: the partial report is not an undecided --decide run stopped at a look "
+                f"(decision {decision.decision!r}, {success.size} episodes, looks every "
+                f"{decision.chunk})"
+            )
+        for n in ns:
+            self({"success": success[:n]})
+        replayed = [DecisionLook(x.n, x.only_a, x.only_b, x.lower, x.upper) for x in self.looks]
+        if replayed != decision.looks or any(x.decision is not None for x in self.looks):
+            raise ConfigError(
+                "--resume: the partial report's looks are not those its episodes give against "
+                f"{self.label!r} (was A's report changed?)"
+            )
+
     def __call__(self, arrays: Mapping[str, Any]) -> bool:
         b = np.asarray(arrays["success"], bool)
         n = b.size
         if self._design is None:
-            self._design = PairedDecisionDesign.in_chunks(
-                n, self.cap, self.alpha, self.margin, self.spending
-            )
+            self.fix(n)
+        assert self._design is not None
         k = self._design.looks.index(n)
         a = self.baseline[:n]
         ns = self._design.looks[: k + 1]
@@ -124,9 +164,15 @@ class PairedRule:
         return look.decision is not None
 
     def info(self) -> DecisionInfo:
-        """The report's `decision` block (after the run stopped)."""
+        """The report's `decision` block: after the run stopped, or after an interrupt between
+        looks ("undecided"; the repeated interval holds at every look, so at this one too)."""
         last = self.looks[-1]
         design = self.design
+        if last.decision is None:
+            k = len(self.looks) - 1
+            only_a = [x.only_a for x in self.looks]
+            last = design.look(k, only_a, [x.only_b for x in self.looks], interval=True)
+            last = dataclasses.replace(last, decision="undecided")
         assert last.decision is not None and last.ci_low is not None and last.ci_high is not None
         return DecisionInfo(
             baseline=self.label,

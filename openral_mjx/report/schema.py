@@ -167,9 +167,11 @@ class DecisionInfo:
     it decided: B against `baseline` (A's report, policy `baseline_policy`) on the same seeds,
     looks after every `chunk` seeds up to `cap`, under `rule` (the design in words, with
     `alpha`, equivalence `margin` and `spending`). `decision`: "better", "worse",
-    "equivalent" (B - A within +-margin), "inconclusive" (the cap came first).
-    [`ci_low`, `ci_high`]: the repeated interval for rate_B - rate_A at the stop, valid under
-    the stopping rule (coverage >= 1 - alpha); `difference` the observed B - A."""
+    "equivalent" (B - A within +-margin), "inconclusive" (the cap came first); in a
+    partial report (an interrupted run, `eval --resume` finishes it) "undecided", over the
+    looks before the interrupt. [`ci_low`, `ci_high`]: the repeated interval for
+    rate_B - rate_A at the last look, valid under the stopping rule (coverage >= 1 - alpha);
+    `difference` the observed B - A."""
 
     __pydantic_config__: ClassVar[ConfigDict] = STRICT
 

@@ -213,5 +213,23 @@ json.dump(d, open(sys.argv[2], 'w'), indent=1)" /tmp/push_warp_1m.json "$out/pus
     python3 -m openral_mjx.bench --batching --scene "$s" --backend warp --n "$n" \
       --episodes "${EPISODES:-1000000}" --chunk-episodes "${CHUNK:-131072}" \
       --out "$out/batching_${s}_${n}.json" ;;
+  libero-speed)  # issue 37: the LIBERO mirror's evaluator against its raw physics, TASKS (one per
+                 # suite) at NS envs; EXTRA passes more flags (--ccd-contacts-per-env ...)
+    python3 benchmarks/libero_mirror_gpu.py \
+      --tasks ${TASKS:-libero_spatial/0 libero_object/0 libero_goal/1 libero_10/0} \
+      --ns ${NS:-4096} --steps ${STEPS:-30} ${EXTRA:-} --out "$out/libero_speed${TAG:-}.json" ;;
+  libero-suite-cli)  # issues 37/42: the standard protocol as a user runs it, each of SUITES x 50
+                     # initial states through eval --suite, POLICY (random: every episode runs to
+                     # the suite's step limit), TASK_PROCS tasks at once (MPS=1 under MPS)
+    mps_start || exit 1
+    for s in ${SUITES:-libero_spatial libero_object libero_goal libero_10}; do
+      { time python3 -m openral_mjx.eval --scene libero_mjx --suite "$s" --backend warp \
+        --n-envs 50 --policy "${POLICY:-random}" --task-processes "${TASK_PROCS:-10}" \
+        --out "/tmp/libero_suite_$s.json" --no-breakdown; } 2>&1 | grep -v "^  " | tail -4
+      python3 -c "import json,sys; d=json.load(open(sys.argv[1])); d['episodes']=len(d['episodes'])
+json.dump(d, open(sys.argv[2], 'w'), indent=1)" "/tmp/libero_suite_$s.json" \
+        "$out/libero_suite_${s}_k${TASK_PROCS:-10}.json"
+    done
+    mps_stop ;;
   *) echo "unknown stage $1"; exit 2 ;;
 esac

@@ -9,7 +9,7 @@ export PYTHONPATH=/tmp/site:$PWD PYTHONUNBUFFERED=1
 # and the small packages it imports that the image lacks; .gpucv: opencv-python-headless, which
 # lerobot imports at start) to fit beside the rest. Fetch the last two with
 # benchmarks/lerobot_wheels.sh.
-for d in .gpu .gpu2 .gpu3 .gpulr .gpucv; do
+for d in .gpu .gpu2 .gpu3 .gpulr .gpucv .gpust; do
   if [ -d "$d" ] && [ ! -f "/tmp/site/$d-done" ]; then
     # each set to its own folder, then merged: pip --target skips a package folder that is
     # already there (mujoco/ holds both mujoco's and mujoco-mjx's files)

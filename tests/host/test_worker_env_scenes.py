@@ -77,7 +77,7 @@ def test_done_when_command(policies, tmp_path):
         "--policy",
         f"lerobot:{policies['libero_act']}",
         "--n-envs",
-        "4",
+        "2",
         "--max-steps",
         "3",
         "--opt",
@@ -92,8 +92,8 @@ def test_done_when_command(policies, tmp_path):
     assert "libero/lerobot:" in proc.stdout and f"report: {out}" in proc.stdout
     report = load_report(out)  # the same schema as the MJX scenes' reports, strictly checked
     assert report.scene == "libero" and report.task == "libero_spatial/0"
-    assert report.backend == "host" and report.n_episodes == 4
-    assert [e.metadata["seed"] for e in report.episodes] == [0, 1, 2, 3]
+    assert report.backend == "host" and report.n_episodes == 2
+    assert [e.metadata["seed"] for e in report.episodes] == [0, 1]
     for e in report.episodes:
         assert e.steps == 3 and e.metadata["error"] is None and not e.success
         assert e.latency_budget_ms == 50.0 and 0 < e.mean_step_latency_ms <= e.max_step_latency_ms

@@ -30,10 +30,13 @@ from cli_runs import run_cli
 from worker_envs import require_worker_envs
 
 from openral_mjx.core.errors import ConfigError
-from openral_mjx.evaluation import RunSpec, cluster
+from openral_mjx.evaluation import RunSpec, build_scene, cluster
 from openral_mjx.evaluation import suite as suite_module
 from openral_mjx.evaluation.partial import Interrupted
+from openral_mjx.evaluation.sweep import run_sweep
 from openral_mjx.report import EvalReport, load_report
+from openral_mjx.report.sweep import load_sweep
+from openral_mjx.scenes.factor_ranges import parse_factors
 
 TASKS = ["reach-v3", "pick-place-v3"]
 RUN = {"n_envs": 2, "n_episodes": 2, "max_steps": 60}
@@ -154,6 +157,39 @@ def test_suite_over_two_nodes_equals_a_local_run(
     assert len({p.node_id for p in report.cluster.parts}) == 2  # one task per node
     assert "cluster 127.0.0.1" in stdout and "2 parts on 2 of 2 nodes" in stdout
     assert f"--cluster {two_nodes}" in json.loads(out.read_text())["command"]
+
+
+SWEEP = "delay=0:12:2"  # the push expert succeeds without delay and fails with 12 steps of it
+
+
+@pytest.mark.cluster
+def test_sweep_over_two_nodes_equals_a_local_run(two_nodes, monkeypatch, capsys, tmp_path):
+    """`eval --sweep --cluster` runs one point on each node and writes the sweep report a local
+    sweep writes: per point, each seed's outcome, with where each point ran."""
+    spec = RunSpec(backend="c", threads=1, n_envs=2, n_episodes=4, seed=0, max_steps=120)
+    scene = build_scene("tabletop_push", backend="c", n_envs=2, threads=1)
+    local = run_sweep(scene, "scripted", SWEEP, spec, randomize=parse_factors(["friction=0.5:1"]))
+    out = tmp_path / "sweep.json"
+    code, stdout, err = run_cli(
+        monkeypatch,
+        capsys,
+        *("--scene", "tabletop_push", "--policy", "scripted", "--backend", "c"),
+        *("--threads", "1", "--n-envs", "2", "--n-episodes", "4", "--max-steps", "120"),
+        *("--sweep", SWEEP, "--randomize", "friction=0.5:1", "--cluster", two_nodes),
+        *("--out", str(out)),
+    )
+    assert code == 0, err
+    report = load_sweep(out)
+    assert [(p.value, p.outcomes) for p in report.points] == [
+        (p.value, p.outcomes) for p in local.points
+    ]
+    assert [p.outcomes for p in local.points] == ["1111", "0000"]  # the sweep sees a change
+    assert report.steps == local.steps
+    assert report.cluster is not None and report.cluster.address == two_nodes
+    assert [p.part for p in report.cluster.parts] == ["0", "12"]
+    assert report.cluster.retries == 0
+    assert len({p.node_id for p in report.cluster.parts}) == 2  # one point per node
+    assert "2 parts on 2 of 2 nodes" in stdout
 
 
 def _titled(title: bytes) -> set[int]:

@@ -295,6 +295,37 @@ def test_host_scene_workers_as_actors_equal_local_workers(two_nodes, monkeypatch
     assert "worker processes on Ray" in ray.device
 
 
+@pytest.mark.cluster
+def test_host_scene_suite_over_two_nodes_equals_a_local_run(
+    two_nodes, monkeypatch, capsys, tmp_path
+):
+    """`eval --suite --cluster` for a host scene: each task runs on its own node, its env worker
+    a process there in the node's MetaWorld worker environment; per seed the report is that of
+    the same tasks run here one after the other."""
+    monkeypatch.setattr(suite_module, "scene_suite", lambda scene, suite: TASKS)
+    options = {"n_workers": 1}
+    spec = RunSpec(n_envs=2, n_episodes=2, max_steps=40)
+    local = suite_module.evaluate_suite(
+        "metaworld", "mt10", "metaworld-expert", spec, options=options
+    )
+    out = tmp_path / "host_suite.json"
+    code, stdout, err = run_cli(
+        monkeypatch,
+        capsys,
+        *("--scene", "metaworld", "--suite", "mt10", "--policy", "metaworld-expert"),
+        *("--n-envs", "2", "--n-episodes", "2", "--max-steps", "40", "--opt", "n_workers=1"),
+        *("--cluster", two_nodes, "--out", str(out)),
+    )
+    assert code == 0, err
+    report = load_report(out)
+    assert len(outcomes(report)) == 4 and outcomes(report) == outcomes(local)
+    assert all(e.metadata.get("error") is None for e in report.episodes)
+    assert report.per_task == local.per_task
+    assert report.cluster is not None and [p.part for p in report.cluster.parts] == TASKS
+    assert len({p.node_id for p in report.cluster.parts}) == 2  # one task per node
+    assert "2 parts on 2 of 2 nodes" in stdout
+
+
 ACTOR_CALL = b"ray::_WorkerActor.call"  # an env worker's actor's title while it serves a request
 
 

@@ -4,10 +4,12 @@ The `cluster` tests start the cluster once for the module (`ray start --head`, t
 `ray start --address`, one CPU each, token authentication off as two nodes on one machine
 need) and `ray stop` it at the end, also on failure. The suite is two tasks of the MetaWorld
 mirror on `c` with MetaWorld's expert, a few seeds each: split over both nodes, and with one
-worker killed mid-run, it gives per seed what a local run gives. A host scene's env workers
-run as actors on both nodes with a local run's episodes, and one that crashes, or whose
-actor is killed, fails only its own episodes. Without Ray they are skipped
-(`pip install 'openral_mjx[ray]'`), on CI (`CI` set) they fail. The checks of the flag that
+worker killed mid-run, it gives per seed what a local run gives. So do a two-point sweep of
+`tabletop_push` and a two-task suite of the MetaWorld host scene, one part per node. A host
+scene's env workers run as actors on both nodes with a local run's episodes; one whose worker
+process crashes fails only its own episodes, and one whose actor is killed is replaced and its
+episodes replayed, ending as a local run's. Without Ray they are skipped
+(`pip install 'openral_mjx[ray]'`), on CI (`CI` set) they fail. The checks of the flags that
 need no cluster run in the default tier.
 """
 
@@ -33,7 +35,8 @@ from openral_mjx.core.errors import ConfigError
 from openral_mjx.evaluation import RunSpec, build_scene, cluster
 from openral_mjx.evaluation import suite as suite_module
 from openral_mjx.evaluation.partial import Interrupted
-from openral_mjx.evaluation.sweep import run_sweep
+from openral_mjx.evaluation.sweep import SweepCluster, run_sweep
+from openral_mjx.policies import make_policy
 from openral_mjx.report import EvalReport, load_report
 from openral_mjx.report.sweep import load_sweep
 from openral_mjx.scenes.factor_ranges import parse_factors
@@ -77,6 +80,14 @@ def test_without_ray_is_one_config_error(monkeypatch):
     monkeypatch.setitem(sys.modules, "ray", None)  # `import ray` raises ImportError
     with pytest.raises(ConfigError, match=r"needs Ray.*pip install 'openral_mjx\[ray\]'"):
         cluster.require_ray()
+
+
+def test_a_sweep_on_a_cluster_takes_its_policy_by_name():
+    """The workers build the policy: a built one is refused before anything connects."""
+    scene = build_scene("tabletop_push", backend="c", n_envs=2, threads=1)
+    on_ray = SweepCluster("local", "tabletop_push", {})
+    with pytest.raises(ConfigError, match="builds its policy on each worker: pass its name"):
+        run_sweep(scene, make_policy("scripted", scene), SWEEP, RunSpec(), cluster=on_ray)
 
 
 @pytest.mark.cluster  # needs Ray, which the default tier does not install

@@ -37,6 +37,10 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
+# This process runs the suite in turn on the GPU, then task processes and Ray workers share it:
+# allocate GPU memory as needed here too, not 75% of it up front (set before JAX starts).
+os.environ.setdefault("XLA_PYTHON_CLIENT_PREALLOCATE", "false")
+
 from openral_mjx.evaluation import RunSpec, evaluate
 from openral_mjx.evaluation import cluster as ray_cluster
 from openral_mjx.evaluation import suite as suite_module

@@ -231,5 +231,14 @@ json.dump(d, open(sys.argv[2], 'w'), indent=1)" "/tmp/libero_suite_$s.json" \
         "$out/libero_suite_${s}_k${TASK_PROCS:-10}.json"
     done
     mps_stop ;;
+  cluster-scaling)  # issue 39: SUITE (mt10) over Ray vs --task-processes on this machine's GPUs,
+                    # then HOST_SCENE (libero) over Ray actors vs local workers up to its cores.
+                    # Needs the ray extra (its wheels carried: the machine has no network) and,
+                    # for the host part, the scene's worker environment (else PARTS=suite)
+    python3 benchmarks/cluster_scaling.py --parts ${PARTS:-suite host} --suite ${SUITE:-mt10} \
+      --backend ${BACKEND:-warp} --n-envs ${N:-1000} --n-episodes ${N:-1000} \
+      --host-scene ${HOST_SCENE:-libero} --host-task ${HOST_TASK:-libero_spatial/0} \
+      --host-n ${HOST_N:-64} --host-steps ${HOST_STEPS:-100} --out "$out/cluster_scaling.jsonl" \
+      | grep -v '^{' ;;
   *) echo "unknown stage $1"; exit 2 ;;
 esac

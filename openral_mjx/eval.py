@@ -35,7 +35,7 @@ from openral_mjx.evaluation.replay import EpisodeTrace, choose_seeds, trace_epis
 from openral_mjx.evaluation.run import build_spec_scene, evaluate_spec
 from openral_mjx.evaluation.sequential import PairedRule, paired_rule
 from openral_mjx.evaluation.suite import evaluate_suite, format_tasks, mps_running
-from openral_mjx.evaluation.sweep import parse_sweep, run_sweep
+from openral_mjx.evaluation.sweep import SweepCluster, parse_sweep, run_sweep
 from openral_mjx.physics import BACKEND_NAMES
 from openral_mjx.physics.gl import GLUnavailable, camera_id, gl_backend
 from openral_mjx.physics.mj_warnings import count_warnings, format_warnings
@@ -154,13 +154,13 @@ class EvalArgs:
     under NVIDIA's MPS daemon (nvidia-cuda-mps-control -d): 16 MetaWorld tasks at 1,000 envs
     ran 3.6x faster together than one at a time with MPS, 0.94x without (8 tasks)."""
     cluster: str | None = None
-    """With --suite: run its tasks as Ray tasks on the cluster at this address (auto: the one
-    `ray start` runs here; local: one started for this run; HOST:PORT or ray://HOST:PORT),
-    each on a GPU where the cluster has GPUs and the backend uses them, else on --threads CPUs
-    (default 1). Per seed the same episodes as a local run; the report says where each task
-    ran. For a host scene without --suite: its env workers run as Ray actors on the cluster's
-    nodes (one CPU each, one per cluster CPU by default). Needs the ray extra
-    (docs/cluster.md)."""
+    """With --suite (or --sweep): run its tasks (points) as Ray tasks on the cluster at this
+    address (auto: the one `ray start` runs here; local: one started for this run; HOST:PORT or
+    ray://HOST:PORT), each on a GPU where the cluster has GPUs and the backend uses them, else
+    on --threads CPUs (default 1). Per seed the same episodes as a local run; the report says
+    where each task (point) ran. For a host scene without --suite: its env workers run as Ray
+    actors on the cluster's nodes (one CPU each, one per cluster CPU by default). Needs the ray
+    extra (docs/cluster.md)."""
     out: Path | None = None
     """Report path (default: results/SCENE_POLICY_TIMESTAMP.json)."""
     factor_bins: int = 5
@@ -524,12 +524,13 @@ def _check_suite(args: EvalArgs, want_video: bool) -> None:
 
 
 def _check_cluster(args: EvalArgs, backend: str) -> None:
-    """`--cluster` fans a suite's tasks, or a host scene's env workers, out over Ray: it needs
-    one of them and Ray, a valid address, and no local fan-out beside it."""
-    if args.suite is None and backend != "host":
+    """`--cluster` fans a suite's tasks, a sweep's points, or a host scene's env workers out
+    over Ray: it needs one of them and Ray, a valid address, and no local fan-out beside it."""
+    if args.suite is None and args.sweep is None and backend != "host":
         raise ConfigError(
-            "--cluster runs the tasks of a --suite, or a host scene's env workers, on Ray "
-            f"workers: give --suite (scene {args.scene!r} runs on {backend})"
+            "--cluster runs the tasks of a --suite, the points of a --sweep, or a host scene's "
+            f"env workers on Ray workers: give --suite or --sweep (scene {args.scene!r} runs on "
+            f"{backend})"
         )
     if args.task_processes != 1 or args.processes != 1:
         raise ConfigError(
@@ -586,10 +587,12 @@ def _reproduce(args: EvalArgs, backend: str, out: Path) -> str:
 @dataclasses.dataclass
 class Built:
     """What `build` made for the run: the scene (None for a suite, which builds one per task)
-    and, for videos, the camera and the GL backend (or why there is none: the run still goes
-    ahead and writes its report, and the missing renderer is reported at the end)."""
+    with the options it was built from and, for videos, the camera and the GL backend (or why
+    there is none: the run still goes ahead and writes its report, and the missing renderer is
+    reported at the end)."""
 
     scene: Scene | None = None
+    options: dict = dataclasses.field(default_factory=dict)
     camera: str = ""
     gl: str = ""
     no_gl: GLUnavailable | None = None
@@ -605,12 +608,12 @@ def build(plan: EvalPlan, owned: contextlib.ExitStack) -> Built:
     # a lerobot policy's cameras, unless --opt names them (run_evaluation does the same)
     implied = implied_camera_options(args.policy, SCENES.get(args.scene).options_cls, plan.options)
     # a host scene's env workers as Ray actors: connected first, so they end before Ray does
-    ray = owned.enter_context(cluster.connected(args.cluster)) if args.cluster else None
+    # (a sweep's points connect in `run_sweep`)
+    actors = args.cluster is not None and args.sweep is None
+    ray = owned.enter_context(cluster.connected(args.cluster)) if actors else None
+    options = {**implied, **(plan.options or {})}
     scene = build_spec_scene(
-        args.scene,
-        {**implied, **(plan.options or {})},
-        plan.spec,
-        randomize=args.randomize if args.sweep is None else (),
+        args.scene, options, plan.spec, randomize=args.randomize if args.sweep is None else ()
     )
     owned.callback(scene.close)
     if ray is not None:
@@ -628,7 +631,7 @@ def build(plan: EvalPlan, owned: contextlib.ExitStack) -> Built:
             f"note: one process drives {n_gpus} GPUs on warp at ~1.5x one GPU; "
             f"--processes {n_gpus} runs one process per GPU (~1.8-1.9x)"
         )
-    built = Built(scene)
+    built = Built(scene, options)
     if plan.want_video:
         built.camera = args.video_camera or default_camera(scene)
         camera_id(scene.mj_model, built.camera)
@@ -699,6 +702,10 @@ def execute(
 
             def on_point(i: int, n: int, value: float) -> None:
                 name = args.sweep.partition("=")[0]
+                if args.cluster is not None:  # called as each point ends, `i` of `n` done
+                    description = f"points done ({name}={value:g})"
+                    progress.update(bar, description=description, completed=i, total=n)
+                    return
                 progress.update(
                     bar, description=f"{name}={value:g} ({i + 1}/{n})", completed=0, total=None
                 )
@@ -713,6 +720,9 @@ def execute(
                 on_point=on_point,
                 on_chunk=on_chunk,
                 resume=plan.resume if isinstance(plan.resume, SweepReport) else None,
+                cluster=None
+                if args.cluster is None
+                else SweepCluster(args.cluster, args.scene, built.options, args.compile_cache),
             )
         evaluation = evaluate_spec(
             built.scene,
@@ -847,6 +857,8 @@ def write_sweep(plan: EvalPlan, report: SweepReport) -> list[Path]:
 
 def show_sweep(plan: EvalPlan, report: SweepReport, plots: list[Path]) -> None:
     print(report.summary())
+    if report.cluster is not None:
+        print(report.cluster.summary())
     print(f"report: {plan.out}")
     for path in plots:
         print(f"plot: {path}")

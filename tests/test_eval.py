@@ -208,7 +208,7 @@ def test_task_and_suite_help_come_from_the_registry(monkeypatch, capsys):
             ["--scene", "metaworld", "--suite", "mt10", "--task-processes", "0"],
             "--task-processes must be >= 1, got 0",
         ),
-        (["--cluster", "auto"], "--cluster runs the tasks of a --suite, or a host scene's"),
+        (["--cluster", "auto"], "--cluster runs the tasks of a --suite, the points of a --sweep"),
         (
             ["--backend", "mjx", "--distributed", "auto", "--processes", "2"],
             "--distributed auto joins the processes a cluster's launcher started: drop --processes",

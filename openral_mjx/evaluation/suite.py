@@ -15,6 +15,8 @@ MPS 2.6x, 16 tasks 3.6x; BENCHMARKS.md).
 `cluster` sends the tasks to a Ray cluster instead (`evaluation.cluster`), each through the
 same per-task entry point as a task process, so per seed the report is a local run's; it
 records where each task ran and how often one was started again after its worker died.
+A host scene's task runs its env workers as processes on the node its Ray task landed on, and
+asks the cluster for one CPU per worker (`--opt n_workers=K`; else one CPU, `--threads`).
 """
 
 from __future__ import annotations
@@ -239,7 +241,10 @@ def _suite_on_cluster(
     start = time.perf_counter()
     with cluster.connected(ray_run.address) as ray:
         ray_run.nodes = cluster.live_nodes(ray)
-        resources = cluster.part_resources(ray, spec.backend, spec.threads)
+        cpus = spec.threads
+        if spec.backend == "host":  # a host task's env workers are processes on its node
+            cpus = (options or {}).get("n_workers") or cpus
+        resources = cluster.part_resources(ray, spec.backend, cpus)
         cache = compile_cache is not None
         parts = [(t, (scene, t, policy, dict(options or {}), spec, cache)) for t in tasks]
         ended: dict[int, tuple[EvalReport, PartPlacement]] = {}

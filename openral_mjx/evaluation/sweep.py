@@ -8,6 +8,10 @@ whole says "success drops here" with a family-wise error of at most `alpha`.
 
 Every point is compiled anew (its value is a constant of its episode program); on a GPU that is
 most of a small sweep's time, on `c` a few seconds per point.
+
+With `cluster` (a Ray address, see `evaluation.cluster`) the points run at once on the cluster's
+workers, each building the scene and policy from their names as the driver does, so per seed a
+point's outcomes are a local run's; the report records where each point ran and the retries.
 """
 
 from __future__ import annotations
@@ -17,19 +21,23 @@ import dataclasses
 import datetime as dt
 import functools
 import itertools
-from collections.abc import Callable, Sequence
+import time
+from collections.abc import Callable, Mapping, Sequence
+from typing import Any
 
 import numpy as np
 
 from openral_mjx.core.errors import ConfigError
 from openral_mjx.core.interrupts import stop_signal
+from openral_mjx.evaluation import cluster as ray_cluster
 from openral_mjx.evaluation.partial import Interrupted, add_warnings, partial_info
 from openral_mjx.evaluation.provenance import device_description, package_versions
-from openral_mjx.evaluation.run import evaluate_spec
+from openral_mjx.evaluation.run import build_spec_scene, evaluate_spec
 from openral_mjx.evaluation.spec import RunSpec
 from openral_mjx.policies import Policy, make_policy
-from openral_mjx.report import EvalReport, PartialInfo
+from openral_mjx.report import ClusterInfo, EvalReport, PartialInfo, PartPlacement
 from openral_mjx.report.sweep import SweepPoint, SweepReport, SweepStep
+from openral_mjx.runner.compile_cache import enable_compilation_cache
 from openral_mjx.scenes import Scene
 from openral_mjx.scenes.factor_ranges import (
     FactorRange,
@@ -68,6 +76,18 @@ def sweep_steps(outcomes: Sequence[np.ndarray], values: Sequence[float], alpha: 
     ]
 
 
+@dataclasses.dataclass(frozen=True)
+class SweepCluster:
+    """Where and how a sweep's points run on a Ray cluster: its `address`, and the `scene`'s
+    registered name and `options` that each worker builds the scene from (`compile_cache`:
+    each worker caches compiled programs in its node's default cache)."""
+
+    address: str
+    scene: str
+    options: Mapping[str, Any]
+    compile_cache: bool = False
+
+
 def run_sweep(
     scene: Scene,
     policy: str | Policy,
@@ -79,17 +99,23 @@ def run_sweep(
     on_point: Callable[[int, int, float], None] | None = None,
     on_chunk: Callable[[int, int, int], None] | None = None,
     resume: SweepReport | None = None,
+    cluster: SweepCluster | None = None,
 ) -> SweepReport:
     """Run `policy` on the same seeds at each value of `sweep` (``NAME=LOW:HIGH:N``), each
     point as `spec` says, except a sequential target: every point runs the same seeds.
-    `on_point(i, n, value)` is called before each point. Stopped by a signal after some
-    points finished, raises `Interrupted` with the report of those (marked partial); given
-    that report as `resume`, runs only the points after them (see `evaluation.partial`).
+    `on_point(i, n, value)` is called before each point (with `cluster`: as each ends, `i`
+    of `n` done). Stopped by a signal after some points finished, raises `Interrupted` with
+    the report of those (marked partial: the grid's first points, as far as every one
+    finished); given that report as `resume`, runs only the points after them (see
+    `evaluation.partial`). With `cluster` the points run on that Ray cluster (see module doc;
+    `policy` must then be a name) and the report's `run_s` is their wall time.
     """
     if spec.target_halfwidth is not None:
         raise ConfigError("--sweep runs the same seeds at every point: drop --target-halfwidth")
     if not 0 < alpha < 1:
         raise ConfigError(f"alpha must be in (0, 1), got {alpha}")
+    if cluster is not None and not isinstance(policy, str):
+        raise ConfigError("a sweep on Ray builds its policy on each worker: pass its name")
     factor, n_points = parse_sweep(sweep, randomize)
     if factor.name not in available_factors(scene):
         raise ConfigError(
@@ -108,34 +134,140 @@ def run_sweep(
         command=spec.command,
     )
     points = _resumed_points(resume, sweep, values)
+    todo = values[len(points) :]
     reports: list[EvalReport] = []
+    ray_run = None if cluster is None else _RayRun(cluster.address, resume)
     with contextlib.ExitStack() as owned:
         pol = policy
-        if isinstance(policy, str):
+        if isinstance(policy, str) and cluster is None:
             pol = make_policy(policy, scene)
             if pol.close is not None:
                 owned.callback(pol.close)
-        assert isinstance(pol, Policy)
-        name = policy if isinstance(policy, str) else pol.name
+        name = policy if isinstance(policy, str) else policy.name
         try:
-            for i, value in enumerate(values[len(points) :], start=len(points)):
-                if on_point is not None:
-                    on_point(i, len(values), value)
-                fixed = dataclasses.replace(factor, low=value, high=value)
-                point_scene = Randomized(scene, [*randomize, fixed])
-                with evaluate_spec(point_scene, pol, spec, on_chunk=on_chunk) as ev:
-                    success = np.asarray(ev.arrays["success"], bool)
-                    r = ev.report
-                reports.append(r)
-                points.append(_point(value, r, success))
+            if cluster is not None and ray_run is not None:
+                assert isinstance(policy, str)
+                point_args = (policy, spec, tuple(randomize), factor)
+                _points_on_cluster(
+                    cluster, point_args, todo, len(values), on_point, reports, points, ray_run
+                )
+            else:
+                assert isinstance(pol, Policy)
+                for i, value in enumerate(todo, start=len(points)):
+                    if on_point is not None:
+                        on_point(i, len(values), value)
+                    r, success = _run_point(scene, pol, spec, randomize, factor, value, on_chunk)
+                    reports.append(r)
+                    points.append(_point(value, r, success))
         except BaseException as e:
             signal = stop_signal(e)
             if signal is None or not points:
                 raise
             finished = [f"{p.value:g}" for p in points]
             partial = partial_info(signal, "points", finished, len(values))
-            raise Interrupted(signal, sweep_report(name, points, reports, resume, partial)) from e
-    return sweep_report(name, points, reports, resume)
+            kept = sweep_report(name, points, reports, resume, partial)
+            if ray_run is not None:
+                kept = dataclasses.replace(kept, cluster=ray_run.info())
+            raise Interrupted(signal, kept) from e
+    done = sweep_report(name, points, reports, resume)
+    return done if ray_run is None else dataclasses.replace(done, cluster=ray_run.info())
+
+
+def _run_point(
+    scene: Scene,
+    policy: Policy,
+    spec: RunSpec,
+    randomize: Sequence[FactorRange],
+    factor: FactorRange,
+    value: float,
+    on_chunk: Callable[[int, int, int], None] | None = None,
+) -> tuple[EvalReport, np.ndarray]:
+    """One grid value's run: its report and per-seed successes."""
+    fixed = dataclasses.replace(factor, low=value, high=value)
+    point_scene = Randomized(scene, [*randomize, fixed])
+    with evaluate_spec(point_scene, policy, spec, on_chunk=on_chunk) as ev:
+        return ev.report, np.asarray(ev.arrays["success"], bool)
+
+
+def cluster_point(
+    scene: str,
+    options: Mapping[str, Any],
+    policy: str,
+    spec: RunSpec,
+    randomize: Sequence[FactorRange],
+    factor: FactorRange,
+    value: float,
+    compile_cache: bool,
+) -> tuple[EvalReport, np.ndarray]:
+    """A Ray worker's part of a sweep: one grid value's run, its scene and policy built (and
+    closed) here as the driver builds them (with the node's default compilation cache, if
+    `compile_cache`)."""
+    if compile_cache:
+        enable_compilation_cache()
+    built = build_spec_scene(scene, options, spec)
+    with contextlib.closing(built):
+        pol = make_policy(policy, built)
+        try:
+            return _run_point(built, pol, spec, randomize, factor, value)
+        finally:
+            if pol.close is not None:
+                pol.close()
+
+
+@dataclasses.dataclass
+class _RayRun:
+    """A sweep's run on a Ray cluster so far: the address, its live nodes, where each point in
+    the report ran (a resumed cluster sweep's points first)."""
+
+    address: str
+    earlier: SweepReport | None
+    nodes: int = 0
+    placements: list[PartPlacement] = dataclasses.field(default_factory=list)
+
+    def info(self) -> ClusterInfo:
+        before = self.earlier.cluster if self.earlier is not None else None
+        parts = [*(before.parts if before is not None else []), *self.placements]
+        return ray_cluster.cluster_info(self.address, self.nodes, parts)
+
+
+def _points_on_cluster(
+    cluster: SweepCluster,
+    point_args: tuple[str, RunSpec, tuple[FactorRange, ...], FactorRange],
+    values: Sequence[float],
+    n_values: int,
+    on_point: Callable[[int, int, float], None] | None,
+    reports: list[EvalReport],
+    points: list[SweepPoint],
+    ray_run: _RayRun,
+) -> None:
+    """The grid `values` as Ray tasks, as many at once as the cluster has room for; `points`
+    (with `reports` and `ray_run.placements`) get the first values' rows in the grid's order as
+    every one before has ended, so an interrupt keeps a prefix (`point_args`: the policy, spec,
+    other factors and swept factor of `cluster_point`). The points' run times are made shares
+    of the wall time."""
+    start = time.perf_counter()
+    spec = point_args[1]
+    built = (cluster.scene, dict(cluster.options))
+    with ray_cluster.connected(cluster.address) as ray:
+        ray_run.nodes = ray_cluster.live_nodes(ray)
+        resources = ray_cluster.part_resources(ray, spec.backend, spec.threads)
+        parts = [(f"{v:g}", (*built, *point_args, v, cluster.compile_cache)) for v in values]
+        ended: dict[int, tuple[EvalReport, np.ndarray, PartPlacement]] = {}
+        first = len(points)
+        runs = ray_cluster.fan_out(ray, cluster_point, parts, resources)
+        with contextlib.closing(runs):  # an interrupt cancels the running points
+            for i, (report, success), placement in runs:
+                ended[i] = (report, success, placement)
+                while len(reports) in ended:
+                    r, ok, where = ended.pop(len(reports))
+                    reports.append(r)
+                    points.append(_point(values[len(reports) - 1], r, ok))
+                    ray_run.placements.append(where)
+                if on_point is not None:
+                    on_point(first + len(ended) + len(reports), n_values, values[i])
+    wall = time.perf_counter() - start
+    total = sum(r.run_s for r in reports) or 1.0
+    reports[:] = [dataclasses.replace(r, run_s=wall * r.run_s / total) for r in reports]
 
 
 def _point(value: float, r: EvalReport, success: np.ndarray) -> SweepPoint:

@@ -4,9 +4,12 @@ Env slot i (the i-th env of the runner's batch) lives in one worker; workers hol
 blocks of slots and step theirs in turn, all workers in parallel. A batch call sends every
 worker its request first, then collects the replies, each with a deadline. Faults stay local:
 an env that raises fails its own slot; a worker that crashes or misses its deadline is killed
-and fails the slots it held; the others finish. Failed and finished slots are not stepped
-again: they return their last observation. Errors are numbered (1, 2, ...) so that the jitted
-loop can carry them as integers; `messages[code - 1]` is the text.
+and fails the slots it held; the others finish. On Ray, a worker whose actor was lost (its
+process killed, its node gone: not its envs' doing) is started again on a new actor, which
+replays the chunk's requests to that worker (its reset and every step so far), so its episodes
+go on as they were, seed for seed; `retries` counts these restarts. Failed and finished slots
+are not stepped again: they return their last observation. Errors are numbered (1, 2, ...) so
+that the jitted loop can carry them as integers; `messages[code - 1]` is the text.
 """
 
 from __future__ import annotations
@@ -23,7 +26,11 @@ from typing import Any
 import numpy as np
 
 from openral_mjx.host.pool import RemoteError, Worker, WorkerFailure
-from openral_mjx.host.remote import RayWorker
+from openral_mjx.host.remote import ActorLost, RayWorker
+
+# Restarts of one worker's lost actor within one chunk before its slots fail (a node that
+# keeps losing actors is not waited on forever).
+MAX_ACTOR_RETRIES = 2
 
 
 @dataclasses.dataclass(frozen=True)
@@ -80,6 +87,11 @@ class EnvBatch:
         self._ended = np.zeros(0, bool)
         self.busy_s: list[float] = []  # per worker: seconds spent in env code since the reset
         self.busy_total_s: list[float] = []  # the same over every call since the layout was set
+        # On Ray, per worker: the requests sent since the chunk's reset (replayed on a new
+        # actor when its actor is lost) and that chunk's restarts; `retries`: all restarts.
+        self._sent: list[list[dict[str, Any]]] = []
+        self._restarts: list[int] = []
+        self.retries = 0
 
     @property
     def n(self) -> int:
@@ -148,6 +160,8 @@ class EnvBatch:
         self.nodes = [""] * n_workers if self._ray is not None else []
         self.busy_s = [0.0] * n_workers
         self.busy_total_s = [0.0] * n_workers
+        self._sent = [[] for _ in range(n_workers)]
+        self._restarts = [0] * n_workers
         self._n = n
         self._ended = np.ones(n, bool)
         self._last = {
@@ -200,10 +214,31 @@ class EnvBatch:
             worker = self._workers[w]
             assert worker is not None
             try:
-                replies[w] = worker.receive(timeout)
+                try:
+                    replies[w] = worker.receive(timeout)
+                except ActorLost:
+                    if self._restarts[w] >= MAX_ACTOR_RETRIES:
+                        raise
+                    replies[w] = self._replay(w, requests[w], timeout)
             except (WorkerFailure, RemoteError) as e:
                 self._fail_block(w, str(e))
+        if self._ray is not None:
+            for w in requests:
+                self._sent[w].append(requests[w])
         return replies
+
+    def _replay(self, w: int, msg: dict[str, Any], timeout: float) -> Any:
+        """Worker `w`'s reply to `msg` from a new actor, after this chunk's earlier requests to
+        it are replayed there (their replies dropped): envs are deterministic per seed and
+        actions, so it stands where the lost one stood. Raises as `receive` does."""
+        self._restarts[w] += 1
+        self.retries += 1
+        self._workers[w] = None
+        worker = self._workers[w] = self._start(w)
+        for earlier in self._sent[w]:
+            is_step = earlier.get("method") == "step"
+            worker.call(earlier, self.config.step_timeout_s if is_step else timeout)
+        return worker.call(msg, timeout)
 
     def _store(self, w: int, slots: list[int], reply: dict[str, Any]) -> None:
         self.busy_s[w] += reply["busy_s"]
@@ -245,6 +280,8 @@ class EnvBatch:
         self._last["diverged"][:] = False
         if "factors" in self._last:
             self._last["factors"][:] = 0.0
+        self._sent = [[] for _ in self._blocks]  # a new chunk: nothing to replay before it
+        self._restarts = [0] * len(self._blocks)
         requests = {
             w: {
                 "op": "call",

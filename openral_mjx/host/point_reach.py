@@ -8,8 +8,9 @@ the target in green, so that image transport is exercised too.
 
 Fault injection, for tests of the adapter's fault handling: the env reset with init state
 ``fault_init_state`` crashes its worker process (``fault="crash"``), hangs (``"hang"``),
-raises (``"raise"``) or reports its physics diverged (``"diverge"``: ``info["diverged"]``) at
-step ``fault_step``. Runs in any environment with numpy.
+stalls for `STALL_S` and goes on as if nothing happened (``"stall"``: time for a test to kill
+its worker), raises (``"raise"``) or reports its physics diverged (``"diverge"``:
+``info["diverged"]``) at step ``fault_step``. Runs in any environment with numpy.
 """
 
 from __future__ import annotations
@@ -36,6 +37,8 @@ TARGETS = np.array(
 STEP = 0.05
 RADIUS = 0.05
 IMAGE = 8
+STALL_S = 3.0
+FAULTS = ("crash", "hang", "stall", "raise", "diverge")
 
 
 class PointReachEnv:
@@ -44,8 +47,8 @@ class PointReachEnv:
     def __init__(
         self, fault: str | None = None, fault_init_state: int = -1, fault_step: int = 0
     ) -> None:
-        if fault not in (None, "crash", "hang", "raise", "diverge"):
-            raise ValueError(f"unknown fault {fault!r}; valid: crash, hang, raise, diverge")
+        if fault is not None and fault not in FAULTS:
+            raise ValueError(f"unknown fault {fault!r}; valid: {', '.join(FAULTS)}")
         self.fault, self.fault_init_state, self.fault_step = fault, fault_init_state, fault_step
         self.pos = np.zeros(2, np.float32)
         self.target = np.zeros(2, np.float32)
@@ -76,7 +79,9 @@ class PointReachEnv:
         return self._obs(), {"is_success": self._success()}
 
     def step(self, action: np.ndarray) -> tuple[dict, float, bool, bool, dict]:
-        if self.armed and self.t == self.fault_step:
+        if self.armed and self.t == self.fault_step and self.fault == "stall":
+            time.sleep(STALL_S)
+        elif self.armed and self.t == self.fault_step:
             if self.fault == "crash":
                 os._exit(3)
             if self.fault == "hang":

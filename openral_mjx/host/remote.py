@@ -5,7 +5,9 @@ A `RayWorker` stands where a local `Worker` stands in `EnvBatch` (the same `send
 builds the worker environment by its recipe on first use on that node (`ensure_env`), starts
 one ordinary `Worker` there and passes each request through. Requests and replies are the same
 messages, so episodes, their per-slot seeds and the per-episode fault isolation are those of a
-local run: a worker (or its actor, or its node) that fails fails only its own slots.
+local run: a worker that fails (its process crashed, or it missed a deadline) fails only its own
+slots. An actor lost under a running worker (its process killed, its node gone) is not the
+episodes' fault: `ActorLost` tells `EnvBatch` to replay them on a new actor.
 """
 
 from __future__ import annotations
@@ -25,6 +27,10 @@ TRANSPORT_S = 60.0
 # What an actor may take to start on a node that first builds the worker environment there
 # (LIBERO's: ~2 min with uv and a warm cache, more from an empty one).
 BUILD_S = 3600.0
+
+
+class ActorLost(WorkerFailure):
+    """The worker's Ray actor died under it (its process or node was lost), not its env."""
 
 
 def _first(error: Exception) -> str:
@@ -100,8 +106,9 @@ class RayWorker:
         self._pending = self._actor.call.remote(msg, step if msg.get("method") == "step" else other)
 
     def receive(self, timeout: float | None) -> Any:
-        """The reply to the last request; `WorkerFailure` if the worker, its actor or its node
-        failed or missed the deadline (the actor is killed then), `RemoteError` if it raised."""
+        """The reply to the last request; `WorkerFailure` if the worker failed or missed the
+        deadline (the actor is killed then), `ActorLost` (one) if its actor or node was lost,
+        `RemoteError` if it raised."""
         ray = self._ray
         ref = self._pending
         wait = None if timeout is None else timeout + TRANSPORT_S
@@ -112,7 +119,7 @@ class RayWorker:
             raise WorkerFailure(f"{self.name} did not answer within {timeout:g} s") from None
         except ray.exceptions.RayError as e:
             self.kill()
-            raise WorkerFailure(f"{self.name} lost its Ray actor: {_first(e)}") from None
+            raise ActorLost(f"{self.name} lost its Ray actor: {_first(e)}") from None
         self._pending = None  # answered (on Ctrl-C in `ray.get` it stays set: see `close`)
         if status == "remote":
             raise RemoteError(value, trace)

@@ -19,13 +19,14 @@ from pydantic import ConfigDict, TypeAdapter
 from openral_mjx.core.errors import ConfigError
 from openral_mjx.core.files import write_text_atomic
 from openral_mjx.report.io import check_readable
-from openral_mjx.report.schema import PartialInfo
+from openral_mjx.report.schema import ClusterInfo, PartialInfo
 from openral_mjx.report.validation import STRICT, Count, Fraction, check, validate_data
 
-SWEEP_SCHEMA_VERSION = "openral_mjx.sweep/2"
+SWEEP_SCHEMA_VERSION = "openral_mjx.sweep/3"
 # /2 added `partial` (an interrupted sweep's finished points) and `mujoco_warnings`; a /1
-# report reads with None and {}.
-READABLE_SWEEP_VERSIONS = ("openral_mjx.sweep/1", SWEEP_SCHEMA_VERSION)
+# report reads with None and {}. /3 added `cluster` (where each point ran on a Ray cluster),
+# None when read from /1 or /2.
+READABLE_SWEEP_VERSIONS = ("openral_mjx.sweep/1", "openral_mjx.sweep/2", SWEEP_SCHEMA_VERSION)
 
 
 @dataclasses.dataclass
@@ -70,7 +71,9 @@ class SweepReport:
     model's values) on seeds `seed .. seed + n_episodes - 1`, with `randomize` (the other
     factors, drawn per seed as in any randomised run) held the same at every point.
     `partial` (see `PartialInfo`): an interrupted sweep's report of its finished points, the
-    first ones of the grid; `mujoco_warnings`: MuJoCo's warnings by kind over every point."""
+    first ones of the grid; `mujoco_warnings`: MuJoCo's warnings by kind over every point;
+    `cluster`: None for a sweep run here, else where each point ran (`ClusterInfo`, its parts
+    named by their values)."""
 
     __pydantic_config__: ClassVar[ConfigDict] = STRICT
 
@@ -96,6 +99,7 @@ class SweepReport:
     versions: dict[str, str]
     partial: PartialInfo | None = None
     mujoco_warnings: dict[str, int] = dataclasses.field(default_factory=dict)
+    cluster: ClusterInfo | None = None
     schema_version: str = SWEEP_SCHEMA_VERSION
 
     def to_dict(self) -> dict[str, Any]:

@@ -153,8 +153,13 @@ class HostBackend:
             "factory": b.factory,
             "workers": self.n_workers(self._batch.n or 1),
             "step_timeout_s": b.step_timeout_s,
-            # on Ray: how many workers ran on each node (by IP), the last layout's
-            **({"ray_nodes": dict(Counter(self._batch.nodes))} if self._batch.nodes else {}),
+            # on Ray: how many workers ran on each node (by IP), the last layout's, and how
+            # often a worker's lost actor was replaced (its episodes replayed on the new one)
+            **(
+                {"ray_nodes": dict(Counter(self._batch.nodes)), "ray_retries": self._batch.retries}
+                if self._batch.nodes
+                else {}
+            ),
         }
 
 

@@ -13,7 +13,7 @@ import dataclasses
 
 from openral_mjx.core.options import check
 from openral_mjx.host.envs import ensure_env
-from openral_mjx.host.point_reach import IMAGE, TARGETS
+from openral_mjx.host.point_reach import FAULTS, IMAGE, TARGETS
 from openral_mjx.scenes.host_scene import HostOptions, HostScene, HostSceneSpec
 
 
@@ -29,9 +29,9 @@ class PointReachOptions(HostOptions):
     def __post_init__(self) -> None:
         super().__post_init__()
         check(self.max_steps >= 1, f"option max_steps={self.max_steps}: must be >= 1")
-        valid = (None, "crash", "hang", "raise", "diverge")
         check(
-            self.fault in valid, f"option fault={self.fault!r}; valid: crash, hang, raise, diverge"
+            self.fault is None or self.fault in FAULTS,
+            f"option fault={self.fault!r}; valid: {', '.join(FAULTS)}",
         )
 
 

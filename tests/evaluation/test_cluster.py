@@ -4,10 +4,12 @@ The `cluster` tests start the cluster once for the module (`ray start --head`, t
 `ray start --address`, one CPU each, token authentication off as two nodes on one machine
 need) and `ray stop` it at the end, also on failure. The suite is two tasks of the MetaWorld
 mirror on `c` with MetaWorld's expert, a few seeds each: split over both nodes, and with one
-worker killed mid-run, it gives per seed what a local run gives. A host scene's env workers
-run as actors on both nodes with a local run's episodes, and one that crashes, or whose
-actor is killed, fails only its own episodes. Without Ray they are skipped
-(`pip install 'openral_mjx[ray]'`), on CI (`CI` set) they fail. The checks of the flag that
+worker killed mid-run, it gives per seed what a local run gives. So do a two-point sweep of
+`tabletop_push` and a two-task suite of the MetaWorld host scene, one part per node. A host
+scene's env workers run as actors on both nodes with a local run's episodes; one whose worker
+process crashes fails only its own episodes, and one whose actor is killed is replaced and its
+episodes replayed, ending as a local run's. Without Ray they are skipped
+(`pip install 'openral_mjx[ray]'`), on CI (`CI` set) they fail. The checks of the flags that
 need no cluster run in the default tier.
 """
 
@@ -30,10 +32,14 @@ from cli_runs import run_cli
 from worker_envs import require_worker_envs
 
 from openral_mjx.core.errors import ConfigError
-from openral_mjx.evaluation import RunSpec, cluster
+from openral_mjx.evaluation import RunSpec, build_scene, cluster
 from openral_mjx.evaluation import suite as suite_module
 from openral_mjx.evaluation.partial import Interrupted
+from openral_mjx.evaluation.sweep import SweepCluster, run_sweep
+from openral_mjx.policies import make_policy
 from openral_mjx.report import EvalReport, load_report
+from openral_mjx.report.sweep import load_sweep
+from openral_mjx.scenes.factor_ranges import parse_factors
 
 TASKS = ["reach-v3", "pick-place-v3"]
 RUN = {"n_envs": 2, "n_episodes": 2, "max_steps": 60}
@@ -74,6 +80,14 @@ def test_without_ray_is_one_config_error(monkeypatch):
     monkeypatch.setitem(sys.modules, "ray", None)  # `import ray` raises ImportError
     with pytest.raises(ConfigError, match=r"needs Ray.*pip install 'openral_mjx\[ray\]'"):
         cluster.require_ray()
+
+
+def test_a_sweep_on_a_cluster_takes_its_policy_by_name():
+    """The workers build the policy: a built one is refused before anything connects."""
+    scene = build_scene("tabletop_push", backend="c", n_envs=2, threads=1)
+    on_ray = SweepCluster("local", "tabletop_push", {})
+    with pytest.raises(ConfigError, match="builds its policy on each worker: pass its name"):
+        run_sweep(scene, make_policy("scripted", scene), SWEEP, RunSpec(), cluster=on_ray)
 
 
 @pytest.mark.cluster  # needs Ray, which the default tier does not install
@@ -154,6 +168,39 @@ def test_suite_over_two_nodes_equals_a_local_run(
     assert len({p.node_id for p in report.cluster.parts}) == 2  # one task per node
     assert "cluster 127.0.0.1" in stdout and "2 parts on 2 of 2 nodes" in stdout
     assert f"--cluster {two_nodes}" in json.loads(out.read_text())["command"]
+
+
+SWEEP = "delay=0:12:2"  # the push expert succeeds without delay and fails with 12 steps of it
+
+
+@pytest.mark.cluster
+def test_sweep_over_two_nodes_equals_a_local_run(two_nodes, monkeypatch, capsys, tmp_path):
+    """`eval --sweep --cluster` runs one point on each node and writes the sweep report a local
+    sweep writes: per point, each seed's outcome, with where each point ran."""
+    spec = RunSpec(backend="c", threads=1, n_envs=2, n_episodes=4, seed=0, max_steps=120)
+    scene = build_scene("tabletop_push", backend="c", n_envs=2, threads=1)
+    local = run_sweep(scene, "scripted", SWEEP, spec, randomize=parse_factors(["friction=0.5:1"]))
+    out = tmp_path / "sweep.json"
+    code, stdout, err = run_cli(
+        monkeypatch,
+        capsys,
+        *("--scene", "tabletop_push", "--policy", "scripted", "--backend", "c"),
+        *("--threads", "1", "--n-envs", "2", "--n-episodes", "4", "--max-steps", "120"),
+        *("--sweep", SWEEP, "--randomize", "friction=0.5:1", "--cluster", two_nodes),
+        *("--out", str(out)),
+    )
+    assert code == 0, err
+    report = load_sweep(out)
+    assert [(p.value, p.outcomes) for p in report.points] == [
+        (p.value, p.outcomes) for p in local.points
+    ]
+    assert [p.outcomes for p in local.points] == ["1111", "0000"]  # the sweep sees a change
+    assert report.steps == local.steps
+    assert report.cluster is not None and report.cluster.address == two_nodes
+    assert [p.part for p in report.cluster.parts] == ["0", "12"]
+    assert report.cluster.retries == 0
+    assert len({p.node_id for p in report.cluster.parts}) == 2  # one point per node
+    assert "2 parts on 2 of 2 nodes" in stdout
 
 
 def _titled(title: bytes) -> set[int]:
@@ -259,51 +306,95 @@ def test_host_scene_workers_as_actors_equal_local_workers(two_nodes, monkeypatch
     assert "worker processes on Ray" in ray.device
 
 
+@pytest.mark.cluster
+def test_host_scene_suite_over_two_nodes_equals_a_local_run(
+    two_nodes, monkeypatch, capsys, tmp_path
+):
+    """`eval --suite --cluster` for a host scene: each task runs on its own node, its env worker
+    a process there in the node's MetaWorld worker environment; per seed the report is that of
+    the same tasks run here one after the other."""
+    monkeypatch.setattr(suite_module, "scene_suite", lambda scene, suite: TASKS)
+    options = {"n_workers": 1}
+    spec = RunSpec(n_envs=2, n_episodes=2, max_steps=40)
+    local = suite_module.evaluate_suite(
+        "metaworld", "mt10", "metaworld-expert", spec, options=options
+    )
+    out = tmp_path / "host_suite.json"
+    code, stdout, err = run_cli(
+        monkeypatch,
+        capsys,
+        *("--scene", "metaworld", "--suite", "mt10", "--policy", "metaworld-expert"),
+        *("--n-envs", "2", "--n-episodes", "2", "--max-steps", "40", "--opt", "n_workers=1"),
+        *("--cluster", two_nodes, "--out", str(out)),
+    )
+    assert code == 0, err
+    report = load_report(out)
+    assert len(outcomes(report)) == 4 and outcomes(report) == outcomes(local)
+    assert all(e.metadata.get("error") is None for e in report.episodes)
+    assert report.per_task == local.per_task
+    assert report.cluster is not None and [p.part for p in report.cluster.parts] == TASKS
+    assert len({p.node_id for p in report.cluster.parts}) == 2  # one task per node
+    assert "2 parts on 2 of 2 nodes" in stdout
+
+
 ACTOR_CALL = b"ray::_WorkerActor.call"  # an env worker's actor's title while it serves a request
+POINT_RUN = ("--scene", "point_reach", "--policy", "random", "--n-envs", "4", "--n-episodes", "8")
+POINT_RUN += ("--max-steps", "6", "--batching", "chunks")
 
 
 @pytest.mark.cluster
-@pytest.mark.parametrize(
-    "fault,kill,needle",
-    [
-        ("crash", False, "worker 0 exited (exit code 3)"),
-        ("hang", True, "worker 0 lost its Ray actor"),
-    ],
-)
-def test_a_failed_actor_worker_fails_only_its_own_episodes(
-    two_nodes, monkeypatch, capsys, tmp_path, fault, kill, needle
+def test_a_crashed_actor_worker_fails_only_its_own_episodes(
+    two_nodes, monkeypatch, capsys, tmp_path
 ):
     """Fault isolation per episode is a local run's: on `point_reach`, seed 1's env crashes its
-    worker process at its third step, or hangs there and its actor's process is killed (as when
-    a node is lost). Worker 0's envs (seeds 0 and 1) fail with that error, a new actor takes
-    worker 0's envs for the next chunk, and every other seed equals a clean run."""
-    common = ("--scene", "point_reach", "--policy", "random", "--n-envs", "4")
-    common += ("--n-episodes", "8", "--max-steps", "6", "--batching", "chunks")
-    common += ("--cluster", two_nodes)
-    faulty = ("--opt", f"fault={fault}", "fault_init_state=1", "fault_step=2", "step_timeout_s=30")
-    killed: list[int] = []
+    worker process at its third step. Worker 0's envs (seeds 0 and 1) fail with that error (an
+    env's own fault is not retried), a new actor takes worker 0's envs for the next chunk, and
+    every other seed equals a clean run."""
     reports = {}
+    faulty = ("--opt", "fault=crash", "fault_init_state=1", "fault_step=2")
     for name, extra in (("clean", ()), ("faulty", faulty)):
         out = tmp_path / f"{name}.json"
-        stop = threading.Event()
-        killer = threading.Thread(
-            target=_kill_busy, args=(ACTOR_CALL, killed, stop, 2.0), daemon=True
+        code, _stdout, err = run_cli(
+            monkeypatch, capsys, *POINT_RUN, "--cluster", two_nodes, *extra, "--out", str(out)
         )
-        if kill and name == "faulty":
-            killer.start()
-        try:
-            code, _stdout, err = run_cli(monkeypatch, capsys, *common, *extra, "--out", str(out))
-        finally:
-            stop.set()
-            if killer.is_alive():
-                killer.join(timeout=10)
         assert code == 0, err
         reports[name] = load_report(out)
-    assert len(killed) == int(kill)
     assert "on Ray" in reports["faulty"].device and "on Ray" in reports["clean"].device
     failed = [e.metadata["seed"] for e in reports["faulty"].episodes if e.metadata["error"]]
     assert failed == [0, 1]
     for ep in reports["faulty"].episodes[:2]:
-        assert not ep.success and needle in ep.metadata["error"], ep.metadata["error"]
+        assert not ep.success and "worker 0 exited (exit code 3)" in ep.metadata["error"]
     rest = [o for o in outcomes(reports["faulty"]) if o[1] not in (0, 1)]
     assert rest == [o for o in outcomes(reports["clean"]) if o[1] not in (0, 1)]
+    assert reports["faulty"].options["backend"]["ray_retries"] == 0
+
+
+@pytest.mark.cluster
+def test_a_killed_actor_s_episodes_run_again_on_a_new_one(two_nodes, monkeypatch, capsys, tmp_path):
+    """An actor lost mid-chunk (its process killed, as when its node is lost) is not its
+    episodes' fault: on `point_reach`, seed 1's env stalls at its third step and its actor's
+    process is killed there; a new actor replays worker 0's chunk so far and goes on. Every
+    episode equals a run on local worker processes, none failed, and the report counts one
+    retry."""
+    stall = ("--opt", "fault=stall", "fault_init_state=1", "fault_step=2", "n_workers=2")
+    local_out, ray_out = tmp_path / "local.json", tmp_path / "ray.json"
+    code, _stdout, err = run_cli(monkeypatch, capsys, *POINT_RUN, *stall, "--out", str(local_out))
+    assert code == 0, err
+    killed: list[int] = []
+    stop = threading.Event()
+    killer = threading.Thread(target=_kill_busy, args=(ACTOR_CALL, killed, stop, 1.0), daemon=True)
+    killer.start()
+    try:
+        code, _stdout, err = run_cli(
+            monkeypatch, capsys, *POINT_RUN, *stall, "--cluster", two_nodes, "--out", str(ray_out)
+        )
+    finally:
+        stop.set()
+        killer.join(timeout=10)
+    assert code == 0, err
+    assert len(killed) == 1
+    local, ray = load_report(local_out), load_report(ray_out)
+    assert "on Ray" in ray.device
+    assert all(e.metadata.get("error") is None for e in ray.episodes)
+    assert len(outcomes(ray)) == 8 and outcomes(ray) == outcomes(local)
+    assert ray.options["backend"]["ray_retries"] == 1

@@ -124,12 +124,14 @@ def test_a_mirror_pairs_with_its_original_and_reports_steps_to_success(
     by seed; over the seeds both succeed on (0, 3, 6), B's steps minus A's are 2, 1, 5."""
     a = with_steps(variant(base, A, scene=original, task=task), [10, 0, 0, 20, 0, 0, 30, 0, 0, 0])
     b = with_steps(variant(base, B, scene=mirror, task=task), [12, 5, 5, 21, 0, 5, 35, 5, 0, 5])
+    b = dataclasses.replace(b, options={**b.options, "mirror_only": 1})  # not in A
     code, out, _ = run_compare(monkeypatch, capsys, tmp_path, a, b)
     assert code == 0
     assert "paired on 10 common seeds: both succeed 3, only A 0, only B 5, neither 2" in out
     assert "per-seed agreement 50.0%" in out
     assert "steps to success where both succeed (3 seeds): median B - A = +2" in out
     assert "one mirrors the other" in out
+    assert "mirror_only" not in out  # an option only one scene has is no difference
 
 
 def test_scenes_that_mirror_nothing_of_each_other_are_not_comparable(

@@ -94,7 +94,7 @@ def test_seed_is_one_initial_state_on_both_scenes(task):
     _check(task)
 
 
-@pytest.mark.slow  # the other 46 tasks x 100 seeds: about a minute each on 2 shared cores
+@pytest.mark.slow  # the other 46 tasks x 100 seeds: 25 min on 2 shared cores (2026-11-27)
 @pytest.mark.parametrize("task", sorted(set(TASKS) - set(CHEAP)))
 def test_seed_is_one_initial_state_on_both_scenes_every_task(task):
     _check(task)

@@ -113,20 +113,25 @@ def test_missing_and_broken_files(monkeypatch, capsys, tmp_path, base):
         assert exc.value.code == 2 and capsys.readouterr().err.startswith("error: report ")
 
 
+@pytest.mark.parametrize(
+    ("original", "mirror", "task"),
+    [("libero", "libero_mjx", "libero_object/0"), ("metaworld", "metaworld_mjx", "push-v3")],
+)
 def test_a_mirror_pairs_with_its_original_and_reports_steps_to_success(
-    monkeypatch, capsys, tmp_path, base
+    monkeypatch, capsys, tmp_path, base, original, mirror, task
 ):
-    """`libero_mjx` mirrors `libero`: seed s is one initial state, so their reports pair by
-    seed; over the seeds both succeed on (0, 3, 6), B's steps minus A's are 2, 1, 5."""
-    task = {"task": "libero_object/0"}
-    a = with_steps(variant(base, A, scene="libero", **task), [10, 0, 0, 20, 0, 0, 30, 0, 0, 0])
-    b = with_steps(variant(base, B, scene="libero_mjx", **task), [12, 5, 5, 21, 0, 5, 35, 5, 0, 5])
+    """A mirror scene mirrors its original: seed s is one initial state, so their reports pair
+    by seed; over the seeds both succeed on (0, 3, 6), B's steps minus A's are 2, 1, 5."""
+    a = with_steps(variant(base, A, scene=original, task=task), [10, 0, 0, 20, 0, 0, 30, 0, 0, 0])
+    b = with_steps(variant(base, B, scene=mirror, task=task), [12, 5, 5, 21, 0, 5, 35, 5, 0, 5])
+    b = dataclasses.replace(b, options={**b.options, "mirror_only": 1})  # not in A
     code, out, _ = run_compare(monkeypatch, capsys, tmp_path, a, b)
     assert code == 0
     assert "paired on 10 common seeds: both succeed 3, only A 0, only B 5, neither 2" in out
     assert "per-seed agreement 50.0%" in out
     assert "steps to success where both succeed (3 seeds): median B - A = +2" in out
     assert "one mirrors the other" in out
+    assert "mirror_only" not in out  # an option only one scene has is no difference
 
 
 def test_scenes_that_mirror_nothing_of_each_other_are_not_comparable(

@@ -2,9 +2,9 @@
 
 A point in the unit square moves by ``0.05 * action`` per step (actions clipped to [-1, 1])
 towards a target; success when it is within 0.05 of it. The target is one of 8 fixed initial
-states (option ``init_state``) or drawn from the reset seed. Observation: ``state`` = (x, y,
-target x, target y) float32 and a tiny ``image`` (8 x 8 RGB, uint8) with the point in red and
-the target in green, so that image transport is exercised too.
+states (option ``init_state``), given (option ``target``: x, y), or drawn from the reset seed.
+Observation: ``state`` = (x, y, target x, target y) float32 and a tiny ``image`` (8 x 8 RGB,
+uint8) with the point in red and the target in green, so that image transport is exercised too.
 
 Fault injection, for tests of the adapter's fault handling: the env reset with init state
 ``fault_init_state`` crashes its worker process (``fault="crash"``), hangs (``"hang"``),
@@ -72,6 +72,8 @@ class PointReachEnv:
         rng = np.random.default_rng(seed)
         init = options.get("init_state")
         self.target = TARGETS[init] if init is not None else rng.uniform(0.1, 0.9, 2)
+        if options.get("target") is not None:
+            self.target = np.asarray(options["target"])
         self.target = self.target.astype(np.float32)
         self.pos = rng.uniform(0.3, 0.7, 2).astype(np.float32)
         self.t = 0

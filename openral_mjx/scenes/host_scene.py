@@ -9,7 +9,9 @@ env slot (the env's position in the batch); the JAX state carries the slot, the 
 runner starts with a reset of all slots, so workers started once serve every chunk.
 
 Determinism: seed s reaches the env as its reset seed (drawn from the episode's reset key) and,
-for simulators with a fixed list of initial states, as init state ``s mod n_init_states``.
+for simulators with a fixed list of initial states, as init state ``s mod n_init_states``; a
+scene may also draw a vector in JAX from the reset key (`HostSceneSpec.reset_draw`, e.g. its
+mirror's random draw) that the env resets from, so seed s starts where the mirror's does.
 Episode factors (`batch.factors`, e.g. initial object and goal positions) come from each
 env's reset and ride along in the state's info, where `episode_factors` reads them.
 An env whose physics blows up (its step reports ``info["diverged"]``) ends as a diverged
@@ -49,6 +51,9 @@ class HostSceneSpec:
         max_steps: default episode length.
         n_init_states: fixed initial states to pick from by seed (0: the env's own sampling).
         reset_options: extra options passed to every env reset.
+        reset_draw: a float vector drawn in JAX from the episode's reset key, handed to the
+            env's reset as option `reset_draw_option` (a list of floats); None: no draw.
+        reset_draw_option: that option's name.
         instruction: the task in natural language (see `Scene.instruction`; empty: the
             fallback from the task name).
     """
@@ -64,6 +69,8 @@ class HostSceneSpec:
     n_init_states: int = 0
     reset_options: dict[str, Any] = dataclasses.field(default_factory=dict)
     instruction: str = ""
+    reset_draw: Callable[[jax.Array], jax.Array] | None = None
+    reset_draw_option: str = "rand_vec"
 
 
 @dataclasses.dataclass(frozen=True)
@@ -238,14 +245,21 @@ class HostScene(Scene):
     # ---- host side -------------------------------------------------------------------------
 
     @host_callback
-    def _host_reset(self, seed: np.ndarray, env_seed: np.ndarray) -> dict[str, Any]:
+    def _host_reset(
+        self, seed: np.ndarray, env_seed: np.ndarray, drawn: np.ndarray
+    ) -> dict[str, Any]:
         lead = np.shape(seed)
         seed, env_seed = np.asarray(seed).reshape(-1), np.asarray(env_seed).reshape(-1)
-        n_init = self.host_spec.n_init_states
+        drawn = np.asarray(drawn, np.float64).reshape(len(seed), np.shape(drawn)[-1])
+        spec = self.host_spec
+        n_init = spec.n_init_states
         options = [
-            {**self.host_spec.reset_options, **({"init_state": int(s) % n_init} if n_init else {})}
+            {**spec.reset_options, **({"init_state": int(s) % n_init} if n_init else {})}
             for s in seed
         ]
+        if spec.reset_draw is not None:
+            for opts, vec in zip(options, drawn, strict=True):
+                opts[spec.reset_draw_option] = vec.tolist()
         out = self.batch.reset(env_seed.astype(np.int64), options)
         out["slot"] = np.arange(len(seed), dtype=np.int32)
         return _reshape(out, lead)
@@ -287,11 +301,14 @@ class HostScene(Scene):
 
     def reset_with_seed(self, seed: jax.Array, key: jax.Array) -> State:
         env_seed = jax.random.randint(key, (), 0, 2**31 - 1, dtype=jnp.int32)
+        draw = self.host_spec.reset_draw
+        drawn = jnp.zeros((0,), jnp.float32) if draw is None else draw(key).astype(jnp.float32)
         out = jax.pure_callback(
             self._host_reset,
             self._shapes(()),
             seed.astype(jnp.int32),
             env_seed,
+            drawn,
             vmap_method="broadcast_all",
         )
         return self._state(out, None)

@@ -80,7 +80,11 @@ def _rewards(report: EvalReport) -> dict[int, float]:
 def _notes(a: EvalReport, b: EvalReport) -> list[str]:
     notes = []
     differ = [f for f in ("robot", "backend", "max_steps") if getattr(a, f) != getattr(b, f)]
-    keys = sorted(set(a.options) | set(b.options))
+    # a mirror and its original are different scenes with different option sets: only the
+    # options both have can differ in a way worth noting
+    keys = sorted(
+        set(a.options) & set(b.options) if a.scene != b.scene else set(a.options) | set(b.options)
+    )
     options = [k for k in keys if a.options.get(k) != b.options.get(k) and k != "backend"]
     if differ or options:
         what = ", ".join(differ + [f"option {k}" for k in options])

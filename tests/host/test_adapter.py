@@ -23,6 +23,7 @@ from openral_mjx.host.pool import RemoteError, Worker
 from openral_mjx.policies import make_policy
 from openral_mjx.runner import EpisodeRunner, compile_cache, export_cache, run_seeds
 from openral_mjx.scenes import make_scene
+from openral_mjx.scenes.host_scene import HostScene
 from openral_mjx.stats import wilson_interval
 
 STEPS = 12
@@ -86,6 +87,25 @@ def test_same_seed_same_episode_at_any_batch_size_and_worker_count(reach):
     for other in (chunked, single):
         for key in ("success", "steps", "total_reward", "first_success_step", "info/error"):
             np.testing.assert_array_equal(whole[key], other[key], err_msg=key)
+
+
+def test_a_vector_drawn_from_the_reset_key_reaches_the_envs_reset(reach):
+    """`HostSceneSpec.reset_draw` (how a host scene starts seed s where its mirror does): the
+    vector drawn from seed s's reset key is the env's reset option, at any batch size."""
+    draw = lambda key: jax.random.uniform(key, (2,), minval=0.1, maxval=0.9)  # noqa: E731
+    spec = dataclasses.replace(
+        reach.host_spec, reset_draw=draw, reset_draw_option="target", n_init_states=0
+    )
+    scene = HostScene(spec, reach.options, reach.env_name, reach.batch.config.python)
+    seeds = jnp.arange(5, dtype=jnp.int32)
+    keys = jax.vmap(lambda s: jax.random.split(jax.random.PRNGKey(s))[0])(seeds)
+    try:
+        state = jax.vmap(scene.reset_with_seed)(seeds, keys)
+        one = jax.vmap(scene.reset_with_seed)(seeds[3:4], keys[3:4])
+    finally:
+        scene.close()
+    np.testing.assert_array_equal(state.obs["state"][:, 2:], jax.vmap(draw)(keys))
+    np.testing.assert_array_equal(one.obs["state"][0], state.obs["state"][3])
 
 
 def test_finished_envs_are_not_stepped():

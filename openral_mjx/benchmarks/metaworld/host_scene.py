@@ -2,9 +2,11 @@
 
 Task: one of MetaWorld 3.1.1's 50 v3 tasks (``reach-v3``, ``push-v3``, ...); suites `mt10`,
 `mt50`, `ml45-train` and `ml45-test` are MetaWorld's MT10, MT50 and ML45 task lists, in its
-order. Seed s seeds MetaWorld's own randomisation of the object and goal positions (its
-``seeded_rand_vec`` generator) with a value drawn from the episode's reset key, so seed s has
-the same initial state on every run and batch size. Observation (MetaWorld's gymnasium env):
+order. Seed s sets MetaWorld's random vector (object and goal positions): drawn in JAX from
+the episode's reset key from the task's reset space, with MetaWorld's redraw rule, exactly as
+the `metaworld_mjx` mirror draws it (`mirror.task.random_vector`), and handed to MetaWorld's
+own frozen-vector reset, so seed s has the same initial state on every run and batch size, and
+on this scene and its mirror. Observation (MetaWorld's gymnasium env):
 ``obs``, 39 float32 (hand, gripper, object poses, the previous frame's, goal; the goal is zeros
 with ``goal_observable=false``, as in MetaWorld's ML benchmarks), ``agent_pos`` (its first 4,
 lerobot's MetaWorld state), with ``image_size`` > 0 ``pixels`` (lerobot's ``corner2`` camera,
@@ -13,7 +15,8 @@ the task's scripted policy's action at this observation (computed in the worker;
 ``--policy metaworld-expert``). Action: 4-D hand displacement and gripper in [-1, 1] at 80 Hz
 (MetaWorld's 5 substeps of 2.5 ms). Success: ``info["success"]``, which ends the episode;
 MetaWorld truncates at 500 steps. Episode factors: the object's initial position and the goal
-position (x, y, z). Instruction: lerobot's description of the task (`INSTRUCTIONS`), also the
+position (x, y, z): MetaWorld's ``obj_init_pos`` and ``_target_pos`` after the reset, which the
+mirror reports too. Instruction: lerobot's description of the task (`INSTRUCTIONS`), also the
 mirror's. Runs in the ``metaworld`` worker environment, created on first use (see
 `openral_mjx.host.envs`).
 """
@@ -21,6 +24,7 @@ mirror's. Runs in the ``metaworld`` worker environment, created on first use (se
 from __future__ import annotations
 
 import dataclasses
+import functools
 
 from openral_mjx.core.errors import unknown
 from openral_mjx.core.options import check
@@ -264,6 +268,10 @@ def metaworld(options: MetaWorldOptions, **_: object) -> HostScene:
         "expert": o.expert,
     }
     env = {"MUJOCO_GL": o.gl, "PYOPENGL_PLATFORM": o.gl} if o.image_size > 0 else {}
+    # imported here: the mirror's package imports this module
+    from openral_mjx.benchmarks.metaworld.mirror.task import random_vector
+    from openral_mjx.benchmarks.metaworld.mirror.tasks import TASKS as MIRROR_TASKS
+
     batch = dataclasses.replace(
         o.batch_config(FACTORY, kwargs, observation, ACTION_SIZE, env), factors=FACTORS
     )
@@ -277,6 +285,9 @@ def metaworld(options: MetaWorldOptions, **_: object) -> HostScene:
         control_dt=CONTROL_DT,
         max_steps=o.max_steps,
         instruction=instruction(o.task),
+        # seed s: the mirror's random vector, which the worker's reset freezes (`rand_vec`)
+        reset_draw=functools.partial(random_vector, MIRROR_TASKS[o.task]),
+        reset_draw_option="rand_vec",
     )
     return HostScene(spec, o, ENV, ensure_env(ENV))
 

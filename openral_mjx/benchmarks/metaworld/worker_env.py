@@ -119,8 +119,8 @@ class MetaWorldEnv:
 
     def reset(self, seed: int | None = None, options: dict | None = None) -> tuple[dict, dict]:
         """A new episode from `seed`, or with ``options={"rand_vec": [...]}`` from that random
-        vector (MetaWorld's frozen-vector path: the mirror scene's agreement tests put both
-        envs on the same initial state this way)."""
+        vector (MetaWorld's frozen-vector path: the `metaworld` scene hands it the vector it
+        draws for seed s, the mirror's, so both scenes start seed s from one state)."""
         env = self.env
         self._mujoco.mj_resetData(env.model, env.data)
         env.seed(0 if seed is None else int(seed) % 2**32)

@@ -17,6 +17,7 @@ SCENE = SceneEntry(
     tasks=host_scene.SCENE.tasks,
     suite_names=host_scene.SCENE.suite_names,
     expert="metaworld-expert",
+    mirrors="metaworld",
 )
 
 __all__ = ["SCENE", "MetaWorldMjx", "MetaWorldMjxOptions"]

@@ -11,7 +11,9 @@ two on the same initial states. What the scene reproduces of MetaWorld's `Sawyer
   the task's ``_random_reset_space`` with the episode's key (the first of 32 draws that the
   task's `accept` keeps: MetaWorld redraws the same way), then the task places the objects.
   MetaWorld's numpy generator is not reproduced: seed s gives the same episode here on every
-  run, and the agreement tests hand the host env the mirror's random vector.
+  run, and the `metaworld` host scene hands MetaWorld the same vector for seed s
+  (`task.random_vector`), so seed s is one initial state on both scenes. Episode factors are
+  MetaWorld's ``obj_init_pos`` and ``_target_pos`` after the reset, as the host scene reports.
 - **Action**: 4-D in [-1, 1]: the mocap target moves by ``action[:3] / 100``, clipped to the
   task's mocap box, with the hand's fixed orientation; the gripper's two actuators get
   ``(a[3], -a[3])``; 5 physics steps of 2.5 ms per control step.
@@ -37,7 +39,7 @@ import jax.numpy as jnp
 import mujoco
 import numpy as np
 
-from openral_mjx.benchmarks.metaworld.host_scene import ROBOT
+from openral_mjx.benchmarks.metaworld.host_scene import FACTORS, ROBOT
 from openral_mjx.benchmarks.metaworld.host_scene import instruction as host_instruction
 from openral_mjx.benchmarks.metaworld.mirror import task as mw
 from openral_mjx.benchmarks.metaworld.mirror.assets import load_spec
@@ -67,7 +69,6 @@ from openral_mjx.scenes.sensor_obs import (
     sensor_shapes,
 )
 
-N_DRAWS = 32  # candidate random vectors per reset; P(no draw accepted) is negligible
 OBS_SIZES = {"hand": 3, "gripper": 1, "objects": 14, "prev": 18, "goal": 3}
 _MOCAP_QUAT = np.asarray(mw.MOCAP_QUAT) / np.linalg.norm(mw.MOCAP_QUAT)
 # MJX contact slots kept per condim (its `max_contact_points`). Uncapped, MJX gives every
@@ -246,12 +247,8 @@ class MetaWorldMjx(Scene):
     # ---- reset ----------------------------------------------------------------------------
 
     def draw(self, key: jax.Array) -> jax.Array:
-        """The episode's random vector: the first of `N_DRAWS` uniform draws the task keeps."""
-        t = self.logic
-        low, high = jnp.asarray(t.reset_low), jnp.asarray(t.reset_high)
-        vecs = jax.random.uniform(key, (N_DRAWS, low.shape[0]), minval=low, maxval=high)
-        ok = jax.vmap(t.accept)(vecs)
-        return vecs[jnp.argmax(ok)]
+        """The episode's random vector (`task.random_vector`, shared with the host scene)."""
+        return mw.random_vector(self.logic, key)
 
     def reset(self, key: jax.Array) -> State:
         return self.reset_from(self.draw(key))
@@ -326,10 +323,11 @@ class MetaWorldMjx(Scene):
         check_reward(self.task)
 
     def episode_factors(self, state: State) -> dict[str, jax.Array]:
-        """The drawn object and goal positions (MetaWorld's random vector, first 6)."""
-        vec = state.info["vec"]
-        names = ("obj_x", "obj_y", "obj_z", "goal_x", "goal_y", "goal_z")
-        return {n: vec[i] for i, n in enumerate(names) if i < vec.shape[0]}
+        """MetaWorld's ``obj_init_pos`` and ``_target_pos`` after the reset: the `metaworld`
+        host scene's factors (`FACTORS`), the same quantities under the same names."""
+        episode = state.info["episode"]
+        values = jnp.concatenate([episode["obj_init_pos"], episode["target_pos"]])
+        return {n: values[i].astype(jnp.float32) for i, n in enumerate(FACTORS)}
 
     # ---- step -----------------------------------------------------------------------------
 

@@ -149,6 +149,20 @@ def set_obj_xyz(
     return qpos.at[a : a + 3].set(pos), qvel.at[d : d + 6].set(0.0)
 
 
+N_DRAWS = 32  # candidate random vectors per reset; P(no draw accepted) is negligible
+
+
+def random_vector(task: MirrorTask, key: jax.Array) -> jax.Array:
+    """The episode's MetaWorld random vector (float32) for reset key `key`: the first of
+    `N_DRAWS` uniform draws from the task's ``_random_reset_space`` that `task.accept` keeps
+    (MetaWorld redraws the same way). The mirror resets from it, and the `metaworld` host scene
+    hands it to MetaWorld's frozen-vector reset, so seed s starts from one state on both."""
+    low = jnp.asarray(task.reset_low, jnp.float32)
+    high = jnp.asarray(task.reset_high, jnp.float32)
+    vecs = jax.random.uniform(key, (N_DRAWS, low.shape[0]), minval=low, maxval=high)
+    return vecs[jnp.argmax(jax.vmap(task.accept)(vecs))]
+
+
 class MirrorTask:
     """One MetaWorld v3 task (see the module docstring). Subclasses set the class attributes
     and override the methods whose default does not match MetaWorld's task."""

@@ -100,6 +100,11 @@ class DrawerOpen(_Drawer):
     ) -> tuple[jax.Array, jax.Array, dict[str, jax.Array]]:
         return qpos, qvel, {"drawer": vec}
 
+    def episode(self, facts: ModelFacts, vec: jax.Array, view: View) -> dict[str, jax.Array]:
+        # drawer-open keeps ``obj_init_pos`` at the drawer's drawn position (drawer-close
+        # re-reads it from the handle); its reward does not read it
+        return {**super().episode(facts, vec, view), "obj_init_pos": vec}
+
     def objects(self, view: View) -> tuple[jax.Array, jax.Array]:
         return self._handle(view), view.body_quat("drawer_link")
 

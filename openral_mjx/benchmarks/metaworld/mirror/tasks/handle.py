@@ -87,6 +87,10 @@ class HandlePullSide(_Pull):
     sites = ("goalPull", "handleCenter")
     handle_site = "handleCenter"
 
+    def episode(self, facts: ModelFacts, vec: jax.Array, view: View) -> dict[str, jax.Array]:
+        # MetaWorld re-reads ``obj_init_pos`` from the placed handle here
+        return {**super().episode(facts, vec, view), "obj_init_pos": view.site_pos("handleCenter")}
+
     def success(self, obs: jax.Array, view: View, episode: Mapping[str, Any]) -> jax.Array:
         return jnp.linalg.norm(obs[4:7] - episode["target_pos"]) <= 0.08
 

@@ -44,6 +44,7 @@ class LeverPull(MovedBodyTask):
         return {
             "target_pos": vec + jnp.array([0.12, 0.0, 0.25 + LEVER_RADIUS], vec.dtype),
             "lever_pos_init": vec + jnp.array([0.12, -LEVER_RADIUS, 0.25], vec.dtype),
+            "obj_init_pos": vec,
         }
 
     def objects(self, view: View) -> tuple[jax.Array, jax.Array]:

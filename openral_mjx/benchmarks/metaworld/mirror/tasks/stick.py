@@ -33,7 +33,7 @@ STICK_Z = 0.02  # init_config["stick_init_pos"][-1]
 class _Stick(MirrorTask):
     xml = "sawyer_xyz/sawyer_stick_obj.xml"
     hand_init_pos = (0.0, 0.6, 0.2)
-    bodies = ("stick",)
+    bodies = ("stick", "object")
     sites = ("insertion", "stick_end")
     slides: ClassVar[tuple[float, float]]
     insertion_offset: ClassVar[tuple[float, float, float]] = (0.0, 0.0, 0.0)
@@ -59,6 +59,8 @@ class _Stick(MirrorTask):
         return {
             "target_pos": jnp.concatenate([vec[3:5], z]),
             "stick_init_pos": jnp.concatenate([vec[:2], jnp.full((1,), STICK_Z, vec.dtype)]),
+            # MetaWorld's ``obj_init_pos``: the box's (``object``) placed position
+            "obj_init_pos": view.body_pos("object"),
         }
 
     def objects(self, view: View) -> tuple[jax.Array, jax.Array]:

@@ -163,6 +163,8 @@ def test_batch_matches_the_env_stepped_directly(
     assert not np.array_equal(first["state"][0], first["state"][1])  # different episodes
 
 
+@pytest.mark.slow  # ~75 s on CI; LIBERO's images reach a lerobot policy in test_done_when_command
+# (ACT), and Diffusion on pixels runs on PushT (tests/host/test_gym_envs_lerobot.py)
 def test_diffusion_policy_on_libero(policies):
     report = evaluate(
         "libero",

@@ -134,6 +134,21 @@ def test_a_mirror_pairs_with_its_original_and_reports_steps_to_success(
     assert "mirror_only" not in out  # an option only one scene has is no difference
 
 
+def test_a_mirror_without_the_original_s_reward_gets_no_reward_line(
+    monkeypatch, capsys, tmp_path, base
+):
+    """A mirror task whose reward is not ported collects 0 everywhere: a paired reward
+    difference against the original would be the original's reward, so it is left out, with a
+    note; with rewards on both sides the line is there."""
+    steps = [10, 0, 0, 20, 0, 0, 30, 0, 0, 0]
+    a = with_steps(variant(base, A, scene="metaworld", task="box-close-v3"), steps, [3.0] * 10)
+    b = variant(base, A, scene="metaworld_mjx", task="box-close-v3")
+    for rewards, shown in (([0.0] * 10, False), ([2.0] * 10, True)):
+        _, out, _ = run_compare(monkeypatch, capsys, tmp_path, a, with_steps(b, steps, rewards))
+        assert ("total reward over 10 common seeds: mean B - A" in out) == shown, out
+        assert ("no total reward compared: B collected 0 in every episode" in out) != shown
+
+
 def test_scenes_that_mirror_nothing_of_each_other_are_not_comparable(
     monkeypatch, capsys, tmp_path, base
 ):

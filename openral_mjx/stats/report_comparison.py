@@ -136,9 +136,16 @@ def compare_reports(
         timing["steps_difference"] = paired_mean_difference(
             [sa[s] for s in both], [sb[s] for s in both], "steps to success", confidence
         )
-        timing["reward_difference"] = paired_mean_difference(
-            [ra[s] for s in common], [rb[s] for s in common], "total reward", confidence
-        )
+        rewardless = [n for n, r in (("A", ra), ("B", rb)) if not any(r.values())]
+        if a.scene != b.scene and rewardless:  # a mirror without the original's reward
+            notes.append(
+                f"no total reward compared: {' and '.join(rewardless)} collected 0 in every "
+                "episode (a mirror task whose reward is not ported computes none)"
+            )
+        else:
+            timing["reward_difference"] = paired_mean_difference(
+                [ra[s] for s in common], [rb[s] for s in common], "total reward", confidence
+            )
         left_a, left_b = len(oa) - len(common), len(ob) - len(common)
         if left_a or left_b:
             notes.append(

@@ -25,22 +25,6 @@ def test_contact_overflow_marks_env_diverged():
     assert not state.metrics["success"].any()
 
 
-@pytest.mark.heavy
-def test_runner_on_warp(push_warp):
-    """Freezing (via `Data.where`), bookkeeping and run-to-run determinism on warp."""
-    pol = make_policy("scripted", push_warp)
-    kw = dict(seeds=np.arange(4), n_envs=4, max_steps=60)
-    first, timing = run_seeds(push_warp, pol, None, **kw)
-    again, _ = run_seeds(push_warp, pol, None, **kw)
-    for k in first:
-        np.testing.assert_array_equal(first[k], again[k], err_msg=k)
-    assert timing.n_devices == 1 and timing.n_envs == 4
-    assert not first["diverged"].any()
-    done = first["success"]
-    np.testing.assert_array_equal(first["steps"][done], first["first_success_step"][done])
-    assert (first["steps"][~done] == 60).all()
-
-
 def test_batch_larger_than_buffers_is_rejected(push_warp):
     pol = make_policy("zero", push_warp)
     with pytest.raises(ConfigError, match="batch_size=8"):

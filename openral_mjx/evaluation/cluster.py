@@ -17,12 +17,13 @@ a cluster is asked for.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import re
 import socket
 from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 from types import ModuleType
-from typing import Any, TypeVar
+from typing import Any, Protocol, TypeVar
 
 from openral_mjx.core.errors import ConfigError
 from openral_mjx.report import ClusterInfo, PartPlacement
@@ -191,3 +192,25 @@ def cluster_info(address: str, nodes: int, placements: Sequence[PartPlacement]) 
         retries=sum(p.attempts - 1 for p in placements),
         parts=list(placements),
     )
+
+
+class _ClusterRecord(Protocol):
+    """A report that may record an earlier run on a cluster (a suite's or a sweep's)."""
+
+    cluster: ClusterInfo | None
+
+
+@dataclasses.dataclass
+class RayRun:
+    """A run on a Ray cluster so far: the address, its live nodes, where each part in the
+    report ran (a resumed cluster run's parts first, from the `earlier` report)."""
+
+    address: str
+    earlier: _ClusterRecord | None
+    nodes: int = 0
+    placements: list[PartPlacement] = dataclasses.field(default_factory=list)
+
+    def info(self) -> ClusterInfo:
+        before = self.earlier.cluster if self.earlier is not None else None
+        parts = [*(before.parts if before is not None else []), *self.placements]
+        return cluster_info(self.address, self.nodes, parts)

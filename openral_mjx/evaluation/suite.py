@@ -34,11 +34,12 @@ from typing import Any
 from openral_mjx.core.errors import ConfigError
 from openral_mjx.core.interrupts import stop_signal
 from openral_mjx.evaluation import cluster
+from openral_mjx.evaluation.cluster import RayRun
 from openral_mjx.evaluation.partial import Interrupted, add_warnings, partial_info
 from openral_mjx.evaluation.run import build_spec_scene, evaluate_spec
 from openral_mjx.evaluation.spec import RunSpec
 from openral_mjx.policies import Policy, make_policy
-from openral_mjx.report import ClusterInfo, EvalReport, PartialInfo, PartPlacement
+from openral_mjx.report import EvalReport, PartialInfo, PartPlacement
 from openral_mjx.runner.compile_cache import enable_compilation_cache
 from openral_mjx.scenes import scene_suite
 from openral_mjx.stats import wilson_interval
@@ -94,7 +95,7 @@ def evaluate_suite(
     earlier = _resumed(resume, suite, tasks)
     todo = tasks[len(earlier.partial.finished) if earlier and earlier.partial else 0 :]
     reports: list[EvalReport] = []
-    ray_run = None if cluster is None else _RayRun(cluster, earlier)
+    ray_run = None if cluster is None else RayRun(cluster, earlier)
     try:
         if ray_run is not None:
             _suite_on_cluster(
@@ -175,22 +176,6 @@ def _start_task_process(compile_cache: Path | None) -> None:
         enable_compilation_cache(compile_cache)
 
 
-@dataclasses.dataclass
-class _RayRun:
-    """A suite's run on a Ray cluster so far: the address, its live nodes, where each task
-    in the report ran (a resumed cluster run's tasks first)."""
-
-    address: str
-    earlier: EvalReport | None
-    nodes: int = 0
-    placements: list[PartPlacement] = dataclasses.field(default_factory=list)
-
-    def info(self) -> ClusterInfo:
-        before = self.earlier.cluster if self.earlier is not None else None
-        parts = [*(before.parts if before is not None else []), *self.placements]
-        return cluster.cluster_info(self.address, self.nodes, parts)
-
-
 def _task_report(
     scene: str,
     task: str,
@@ -233,7 +218,7 @@ def _suite_on_cluster(
     compile_cache: Path | None,
     on_task: Callable[[int, int, str], None] | None,
     reports: list[EvalReport],
-    ray_run: _RayRun,
+    ray_run: RayRun,
 ) -> None:
     """The `tasks` as Ray tasks on the cluster at `ray_run.address`, as many at once as it
     has room for; `reports` (and `ray_run.placements`) get the first tasks' in the suite's

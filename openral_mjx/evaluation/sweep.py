@@ -30,12 +30,13 @@ import numpy as np
 from openral_mjx.core.errors import ConfigError
 from openral_mjx.core.interrupts import stop_signal
 from openral_mjx.evaluation import cluster as ray_cluster
+from openral_mjx.evaluation.cluster import RayRun
 from openral_mjx.evaluation.partial import Interrupted, add_warnings, partial_info
 from openral_mjx.evaluation.provenance import device_description, package_versions
 from openral_mjx.evaluation.run import build_spec_scene, evaluate_spec
 from openral_mjx.evaluation.spec import RunSpec
 from openral_mjx.policies import Policy, make_policy
-from openral_mjx.report import ClusterInfo, EvalReport, PartialInfo, PartPlacement
+from openral_mjx.report import EvalReport, PartialInfo, PartPlacement
 from openral_mjx.report.sweep import SweepPoint, SweepReport, SweepStep
 from openral_mjx.runner.compile_cache import enable_compilation_cache
 from openral_mjx.scenes import Scene
@@ -136,7 +137,7 @@ def run_sweep(
     points = _resumed_points(resume, sweep, values)
     todo = values[len(points) :]
     reports: list[EvalReport] = []
-    ray_run = None if cluster is None else _RayRun(cluster.address, resume)
+    ray_run = None if cluster is None else RayRun(cluster.address, resume)
     with contextlib.ExitStack() as owned:
         pol = policy
         if isinstance(policy, str) and cluster is None:
@@ -214,22 +215,6 @@ def cluster_point(
                 pol.close()
 
 
-@dataclasses.dataclass
-class _RayRun:
-    """A sweep's run on a Ray cluster so far: the address, its live nodes, where each point in
-    the report ran (a resumed cluster sweep's points first)."""
-
-    address: str
-    earlier: SweepReport | None
-    nodes: int = 0
-    placements: list[PartPlacement] = dataclasses.field(default_factory=list)
-
-    def info(self) -> ClusterInfo:
-        before = self.earlier.cluster if self.earlier is not None else None
-        parts = [*(before.parts if before is not None else []), *self.placements]
-        return ray_cluster.cluster_info(self.address, self.nodes, parts)
-
-
 def _points_on_cluster(
     cluster: SweepCluster,
     point_args: tuple[str, RunSpec, tuple[FactorRange, ...], FactorRange],
@@ -238,7 +223,7 @@ def _points_on_cluster(
     on_point: Callable[[int, int, float], None] | None,
     reports: list[EvalReport],
     points: list[SweepPoint],
-    ray_run: _RayRun,
+    ray_run: RayRun,
 ) -> None:
     """The grid `values` as Ray tasks, as many at once as the cluster has room for; `points`
     (with `reports` and `ray_run.placements`) get the first values' rows in the grid's order as

@@ -3,7 +3,8 @@
 
 A scene is smoke-tested here the day it is registered. Tiers (see README, Tests): MuJoCo
 scenes on `c` run in the default tier; `mjx` and `warp` (a compile of minutes on a CPU) in
-`heavy`; scenes that need a worker environment in `worker`.
+`heavy`; scenes that need a worker environment in `worker`; the one case that compiles for
+minutes even there (SLOW_CASES) in `slow`.
 """
 
 from __future__ import annotations
@@ -24,6 +25,11 @@ STEPS = 3
 HOST_OPTIONS = {"n_workers": 1}
 # (with the scene's own contact capacity, as `eval` builds it).
 SETTINGS = {"c": {"threads": 2}, "warp": {"batch_size": 8}}
+# Cases in `slow` (run by hand or on a GPU machine): MJX compiles the MetaWorld mirror's mesh
+# collisions for ~2.5 minutes on 2 cores, the largest single test of CI's heavy tier. Its MJX
+# model is still built and checked in the heavy tier (tests/benchmarks/metaworld), and
+# `gpu_runs.sh mw-mjx-check` steps all 50 tasks on MJX on a GPU.
+SLOW_CASES = {("metaworld_mjx", "mjx")}
 
 
 def _cases() -> list:
@@ -37,6 +43,8 @@ def _cases() -> list:
                 marks.append(pytest.mark.worker)
             if backend in ("mjx", "warp"):
                 marks.append(pytest.mark.heavy)
+            if (name, backend) in SLOW_CASES:
+                marks.append(pytest.mark.slow)
             cases.append(pytest.param(name, backend, marks=marks, id=f"{name}-{backend}"))
     return cases
 

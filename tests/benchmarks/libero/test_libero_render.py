@@ -53,8 +53,10 @@ def test_pixel_agreement_counts_pixels_by_their_worst_channel() -> None:
 def test_camera_options_are_checked_before_any_export() -> None:
     with pytest.raises(ConfigError, match="option image_size=4: must be >= 8"):
         LiberoMjxOptions(image_size=4)
-    with pytest.raises(ConfigError, match=r"image_size renders on backend c only.*'warp'"):
-        LiberoMjx(LiberoMjxOptions(image_size=32), backend="warp")
+    with pytest.raises(ConfigError, match=r"image_size renders on backend c .* or warp .*'mjx'"):
+        LiberoMjx(LiberoMjxOptions(image_size=32), backend="mjx")
+    with pytest.raises(ConfigError, match="render backend='mjx'"):
+        render.task_rows(TASK, [0], backend="mjx")
 
 
 @pytest.mark.worker

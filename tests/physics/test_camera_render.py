@@ -17,7 +17,13 @@ import pytest
 from openral_mjx import raycast
 from openral_mjx.core.errors import ConfigError
 from openral_mjx.physics import PhysicsSettings
-from openral_mjx.physics.warp_render import _subtree_com, light_poses, tracked_camera_pose
+from openral_mjx.physics.warp_render import (
+    _subtree_com,
+    light_poses,
+    render_model,
+    srgb_to_linear,
+    tracked_camera_pose,
+)
 from openral_mjx.scenes import So101BoxOptions, make_scene
 from openral_mjx.scenes.so101_box import compose
 
@@ -193,6 +199,36 @@ def test_warp_draws_only_the_steps_asked_and_the_poses_before_their_last(
         # measured: all but 2 of the 6,912 RGB values within 2e-3 (an edge pixel's, by 16/255)
         assert np.mean(np.abs(got - want) <= 1e-3) >= 0.99, key
         assert not np.array_equal(got, one.quantities.sensors[key]), key  # drawn anew
+
+
+_TEXTURES = """
+<mujoco>
+  <asset>
+    <texture name="srgb" type="2d" builtin="flat" rgb1="0.5 0.5 0.5" width="4" height="4"
+             colorspace="sRGB"/>
+    <texture name="linear" type="2d" builtin="flat" rgb1="0.5 0.5 0.5" width="4" height="4"
+             colorspace="linear"/>
+  </asset>
+  <worldbody/>
+</mujoco>
+"""
+
+
+def test_warp_draws_srgb_textures_decoded_as_mujocos_renderer_does():
+    """MuJoCo's renderer samples an sRGB texture's texels decoded to linear values; the model
+    MuJoCo-Warp draws holds them decoded (127 -> 54), the others and the physics' model as
+    they were. LIBERO's floor is such a texture: undecoded, warp drew it ~30/255 brighter."""
+    model = mujoco.MjModel.from_xml_string(_TEXTURES)
+    drawn = render_model(model)
+    srgb, linear = (drawn.tex(n).id for n in ("srgb", "linear"))
+    texels = lambda m, t: m.tex_data[m.tex_adr[t] : m.tex_adr[t] + 48]  # noqa: E731
+    assert set(texels(model, srgb)) == {127} and set(texels(drawn, srgb)) == {54}
+    np.testing.assert_array_equal(texels(drawn, linear), texels(model, linear))
+    assert drawn.tex_colorspace[srgb] == mujoco.mjtColorSpace.mjCOLORSPACE_LINEAR
+    assert model.tex_colorspace[srgb] == mujoco.mjtColorSpace.mjCOLORSPACE_SRGB
+    plain = mujoco.MjModel.from_xml_string(_TEXTURES.replace('"sRGB"', '"linear"'))
+    assert render_model(plain) is plain
+    assert srgb_to_linear(np.array([0, 10, 255], np.uint8)).tolist() == [0, 1, 255]
 
 
 def test_rgb_needs_a_renderer():

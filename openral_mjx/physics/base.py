@@ -272,8 +272,9 @@ class PhysicsBackend(abc.ABC):
     ) -> PhysicsState:
         """Hold `ctrl` (and, for a model with mocap bodies, `mocap` = their positions (nmocap,
         3) and unit quaternions (nmocap, 4)) for `n_substeps` physics steps. `render` False:
-        `c` draws no RGB camera this step and the new state keeps the previous images (a scene
-        that observes one physics step of several draws that one only); `warp` draws anyway."""
+        the backend draws no camera this step (`c`: no RGB image; `warp`: none of the images
+        MuJoCo-Warp's renderer draws, RGB or depth) and the new state keeps the previous ones,
+        so a scene that observes one physics step of several draws that one only."""
 
     def warm_up(self) -> None:  # noqa: B027 - an optional hook, a no-op by default
         """Build whatever the first step would build lazily (e.g. GPU kernels), so that it is

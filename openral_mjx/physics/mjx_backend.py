@@ -133,10 +133,16 @@ class MjxBackend(PhysicsBackend):
         return ok
 
     def _readout(
-        self, d: mjx.Data, fields: dict[str, jax.Array] | None = None
+        self,
+        d: mjx.Data,
+        fields: dict[str, jax.Array] | None = None,
+        kept: dict[str, jax.Array] | None = None,
     ) -> tuple[mjx.Data, Quantities]:
         """The quantities of `d` (and `d` itself: a backend that renders threads its
-        execution token through the data); `fields`: this env's model fields."""
+        execution token through the data); `fields`: this env's model fields. `kept`: the
+        rendered sensors' readings to carry over instead of drawing them (a step that does
+        not render); unused here, where nothing is rendered."""
+        del kept
         q = Quantities(
             qpos=d.qpos,
             qvel=d.qvel,
@@ -191,7 +197,6 @@ class MjxBackend(PhysicsBackend):
         mocap: tuple[jax.Array, jax.Array] | None = None,
         render: bool = True,
     ) -> PhysicsState:
-        del render  # `warp` draws its cameras at every step (a later step may skip them)
         # A diverged env (already counted a failure) is parked at the reference pose, so its
         # garbage cannot spread, e.g. into Warp's contact buffer shared by the batch.
         d, ok = state.data, state.quantities.ok
@@ -213,5 +218,7 @@ class MjxBackend(PhysicsBackend):
         d, kept = jax.lax.fori_loop(0, self.n_substeps, substep, (d, ok))
         if self.quantity_spec.poses_after_step:  # the next step's forward pass redoes them
             d = self._kinematics(mx, d, state.fields)
-        d, q = self._readout(d, state.fields)
+        # a step that does not render keeps the previous images (`PhysicsBackend.step`)
+        same = None if render else {k: state.quantities.sensors[k] for k in self.rendered}
+        d, q = self._readout(d, state.fields, same)
         return PhysicsState(data=d, quantities=q.replace(ok=q.ok & kept), fields=state.fields)

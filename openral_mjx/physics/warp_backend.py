@@ -128,11 +128,16 @@ class WarpBackend(MjxBackend):
         )
 
     def _readout(
-        self, d: mjx.Data, fields: dict[str, jax.Array] | None = None
+        self,
+        d: mjx.Data,
+        fields: dict[str, jax.Array] | None = None,
+        kept: dict[str, jax.Array] | None = None,
     ) -> tuple[mjx.Data, Quantities]:
         d, q = super()._readout(d, fields)
         if self.cameras is None:
             return d, q
+        if kept is not None:  # no render: the previous images (a scene observes another step)
+            return d, q.replace(sensors={**q.sensors, **kept})
         images, d = self.cameras.render(d, fields)
         return d, q.replace(sensors={**q.sensors, **images})
 

@@ -16,11 +16,13 @@ colours (`RENDER_FIELDS`: an env's fields of those names reach it as a batched m
 every world. Lights are placed in the data by MuJoCo's `mj_camlight`, which `mjx.step` runs and
 kinematics alone does not: `WarpCameras.place` puts them (and the cameras, fixed to their body
 or tracking it) for the first frame. How RGB is drawn (textures and skybox, shadows,
-anti-aliasing) is the specs' `RgbStyle`, one per render context.
+anti-aliasing) is the specs' `RgbStyle`, one per render context. sRGB textures are decoded
+to linear values first, as MuJoCo's renderer samples them (`render_model`).
 """
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 from typing import Any
 
@@ -87,6 +89,34 @@ def style_options(model: mujoco.MjModel, style: RgbStyle) -> dict[str, Any]:
         "shadow_light_fraction": 0.0,
         "samples_per_pixel": style.samples,
     }
+
+
+def srgb_to_linear(texels: np.ndarray) -> np.ndarray:
+    """uint8 sRGB-encoded values decoded to linear ones (IEC 61966-2-1), uint8."""
+    c = texels.astype(np.float64) / 255.0
+    lin = np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
+    return np.round(lin * 255.0).astype(np.uint8)
+
+
+def render_model(model: mujoco.MjModel) -> mujoco.MjModel:
+    """The model MuJoCo-Warp's renderer draws: `model`, or a copy whose sRGB-encoded textures
+    (`tex_colorspace`) hold their linear values. MuJoCo's renderer decodes those when it
+    samples them (OpenGL's sRGB texture formats) and writes the result unencoded; MuJoCo-Warp
+    reads every texel as stored, which drew LIBERO's sRGB floor ~30/255 brighter."""
+    srgb = np.flatnonzero(model.tex_colorspace == int(mujoco.mjtColorSpace.mjCOLORSPACE_SRGB))
+    srgb = [int(t) for t in srgb if model.tex_adr[t] >= 0]  # by reference: decoded from file
+    if not srgb:
+        return model
+    out = copy.copy(model)  # the arrays too: the physics' model keeps its textures
+    for t in srgb:
+        a = int(out.tex_adr[t])
+        n = int(out.tex_width[t]) * int(out.tex_height[t]) * int(out.tex_nchannel[t])
+        texels = out.tex_data[a : a + n].reshape(-1, int(out.tex_nchannel[t]))
+        rgb = min(3, texels.shape[1])  # alpha stays linear
+        texels[:, :rgb] = srgb_to_linear(texels[:, :rgb])
+        out.tex_data[a : a + n] = texels.reshape(-1)
+        out.tex_colorspace[t] = int(mujoco.mjtColorSpace.mjCOLORSPACE_LINEAR)
+    return out
 
 
 # MuJoCo's `mjtCamLight` modes, as the ints `MjModel.light_mode` holds.
@@ -212,7 +242,7 @@ class WarpCameras:
         """The render context for batches of `nworld` (built on first use)."""
         if nworld not in self._contexts:
             self._contexts[nworld] = mjx.create_render_context(
-                self.mj_model,
+                render_model(self.mj_model),
                 nworld=nworld,
                 devices=self.devices,
                 cam_active=[c.cam_id for c in self.cameras],

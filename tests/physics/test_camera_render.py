@@ -17,7 +17,13 @@ import pytest
 from openral_mjx import raycast
 from openral_mjx.core.errors import ConfigError
 from openral_mjx.physics import PhysicsSettings
-from openral_mjx.physics.warp_render import _subtree_com, light_poses, tracked_camera_pose
+from openral_mjx.physics.warp_render import (
+    _subtree_com,
+    light_poses,
+    render_model,
+    srgb_to_linear,
+    tracked_camera_pose,
+)
 from openral_mjx.scenes import So101BoxOptions, make_scene
 from openral_mjx.scenes.so101_box import compose
 
@@ -160,6 +166,69 @@ def test_sensor_slices_of_the_observation(box_warp_cameras, warp_states):
         np.testing.assert_array_equal(got, q.sensors[key])
     rgb = np.asarray(q.sensors["rgb_overhead"])
     assert rgb.min() >= 0 and rgb.max() <= 1 and rgb.std() > 0.01
+
+
+def test_warp_draws_only_the_steps_asked_and_the_poses_before_their_last(
+    box_warp_cameras, warp_states, monkeypatch
+):
+    """A step with ``render=False`` draws nothing and keeps the previous images (the LIBERO
+    mirror draws 1 of its 25 physics steps), with the physics unchanged. A step that renders
+    draws its data's poses, which `mjx.step` computes before integrating, as `mj_step` does:
+    those of the state one physics step earlier (where LIBERO's images come from), not of
+    the state the step ends in (what `c` draws)."""
+    backend = box_warp_cameras.backend
+    monkeypatch.setattr(backend, "n_substeps", 1)  # read when a step is traced
+    start = warp_states[1].physics
+    ctrl = jnp.asarray(
+        np.random.default_rng(1).uniform(-0.5, 0.5, (3, backend.mj_model.nu)), jnp.float32
+    )
+    step = jax.jit(jax.vmap(backend.step))
+    skip = jax.jit(jax.vmap(lambda s, c: backend.step(s, c, render=False)))(start, ctrl)
+    one = step(start, ctrl)
+    np.testing.assert_array_equal(skip.quantities.qpos, one.quantities.qpos)
+    for key in backend.rendered:
+        np.testing.assert_array_equal(skip.quantities.sensors[key], start.quantities.sensors[key])
+    two = step(one, ctrl)
+    init = jax.jit(jax.vmap(backend.init))
+    before, after = (init(s.quantities.qpos, s.quantities.qvel) for s in (one, two))
+    # the poses drawn after step two are those of the state step one ended in
+    np.testing.assert_allclose(two.data.geom_xpos, before.data.geom_xpos, atol=1e-5)
+    assert np.abs(two.data.geom_xpos - after.data.geom_xpos).max() > 1e-4
+    for key in backend.rendered:  # a step's camera and lights are `mj_camlight`'s, init's ours
+        got, want = two.quantities.sensors[key], before.quantities.sensors[key]
+        # measured: all but 2 of the 6,912 RGB values within 2e-3 (an edge pixel's, by 16/255)
+        assert np.mean(np.abs(got - want) <= 1e-3) >= 0.99, key
+        assert not np.array_equal(got, one.quantities.sensors[key]), key  # drawn anew
+
+
+_TEXTURES = """
+<mujoco>
+  <asset>
+    <texture name="srgb" type="2d" builtin="flat" rgb1="0.5 0.5 0.5" width="4" height="4"
+             colorspace="sRGB"/>
+    <texture name="linear" type="2d" builtin="flat" rgb1="0.5 0.5 0.5" width="4" height="4"
+             colorspace="linear"/>
+  </asset>
+  <worldbody/>
+</mujoco>
+"""
+
+
+def test_warp_draws_srgb_textures_decoded_as_mujocos_renderer_does():
+    """MuJoCo's renderer samples an sRGB texture's texels decoded to linear values; the model
+    MuJoCo-Warp draws holds them decoded (127 -> 54), the others and the physics' model as
+    they were. LIBERO's floor is such a texture: undecoded, warp drew it ~30/255 brighter."""
+    model = mujoco.MjModel.from_xml_string(_TEXTURES)
+    drawn = render_model(model)
+    srgb, linear = (drawn.tex(n).id for n in ("srgb", "linear"))
+    texels = lambda m, t: m.tex_data[m.tex_adr[t] : m.tex_adr[t] + 48]  # noqa: E731
+    assert set(texels(model, srgb)) == {127} and set(texels(drawn, srgb)) == {54}
+    np.testing.assert_array_equal(texels(drawn, linear), texels(model, linear))
+    assert drawn.tex_colorspace[srgb] == mujoco.mjtColorSpace.mjCOLORSPACE_LINEAR
+    assert model.tex_colorspace[srgb] == mujoco.mjtColorSpace.mjCOLORSPACE_SRGB
+    plain = mujoco.MjModel.from_xml_string(_TEXTURES.replace('"sRGB"', '"linear"'))
+    assert render_model(plain) is plain
+    assert srgb_to_linear(np.array([0, 10, 255], np.uint8)).tolist() == [0, 1, 255]
 
 
 def test_rgb_needs_a_renderer():

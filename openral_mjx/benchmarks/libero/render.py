@@ -3,12 +3,15 @@
 LIBERO (in its worker environment, robosuite 1.4 on mujoco 3.8.1) plays a fixed action
 sequence from an initial state and hands back its observation images (``image``: agentview,
 ``wrist_image``: robot0_eye_in_hand, upright as the host scene gives them) with the state each
-was drawn from. The mirror (`libero_mjx` with ``image_size``, backend `c`: MuJoCo's OpenGL
-renderer in this environment) draws the same states. Per camera: the share of pixels whose
-every channel is within 8/255, the mean absolute error (in 1/255) and SSIM (Wang et al. 2004).
+was drawn from. The mirror (`libero_mjx` with ``image_size``) draws the same states on backend
+`c` (MuJoCo's OpenGL renderer) or `warp` (MuJoCo-Warp's batch renderer). Per camera: the
+share of pixels whose every channel is within 8/255, the mean absolute error (in 1/255) and
+SSIM (Wang et al. 2004), against LIBERO's images or, with ``--against c``, against the
+mirror's own `c` images of the same states (what `warp` changes of MuJoCo's renderer).
 
 ``python -m openral_mjx.benchmarks.libero.render --tasks libero_spatial/0 --seeds 0 1 2``
-prints the table (markdown) and writes its rows as JSON with ``--out``.
+prints the table (markdown) and writes its rows as JSON with ``--out``; ``--backend warp``
+draws the mirror's images on `warp`.
 """
 
 from __future__ import annotations
@@ -24,12 +27,15 @@ import jax.numpy as jnp
 import numpy as np
 from scipy import ndimage
 
-from openral_mjx.benchmarks.libero.assets import TIMEOUT_S, task_worker
+from openral_mjx.benchmarks.libero.assets import TIMEOUT_S, load_task, task_worker
 from openral_mjx.benchmarks.libero.mirror import LiberoMjx, LiberoMjxOptions
 from openral_mjx.benchmarks.libero.mirror.scene import CAMERAS, camera_images
+from openral_mjx.core.errors import ConfigError
 from openral_mjx.core.files import write_text_atomic
+from openral_mjx.scenes import scene_settings
 
 TOL = 8  # per channel, in 1/255
+BACKENDS = ("c", "warp")  # the mirror's backends that render its cameras
 SSIM_SIGMA = 1.5  # Wang et al.'s Gaussian window: sigma 1.5, 11 x 11
 SSIM_RADIUS = 5
 
@@ -112,24 +118,53 @@ def mirror_images(
     return {k: np.asarray(v) for k, v in images.items()}
 
 
-def task_rows(
-    task: str, seeds: Sequence[int], steps: int = 20, every: int = 10, image_size: int = 128
-) -> list[dict[str, Any]]:
-    """One row per camera of `task`: agreement over seeds x steps 0, `every`, ... `steps`."""
-    scene = LiberoMjx(LiberoMjxOptions(task=task, image_size=image_size), backend="c")
+def backend_images(
+    task: str, backend: str, image_size: int, ref: dict[str, np.ndarray]
+) -> dict[str, np.ndarray]:
+    """The mirror's images on `backend` of the states of `ref` (`libero_states`)."""
+    settings = scene_settings("libero_mjx", batch_size=max(1, len(ref["qpos"])))
+    options = LiberoMjxOptions(task=task, image_size=image_size)
+    scene = LiberoMjx(options, backend=backend, settings=settings)
     try:
-        ref = libero_states(task, seeds, steps, every, image_size, scene.observed_substep - 1)
-        ours = mirror_images(scene, ref["qpos"], ref["qvel"], ref["init"])
+        return mirror_images(scene, ref["qpos"], ref["qvel"], ref["init"])
     finally:
-        scene.backend.close()
+        close = getattr(scene.backend, "close", None)  # `c`'s thread pools and GL contexts
+        if close is not None:
+            close()
+
+
+def task_rows(
+    task: str,
+    seeds: Sequence[int],
+    steps: int = 20,
+    every: int = 10,
+    image_size: int = 128,
+    backend: str = "c",
+    against: str = "libero",
+) -> list[dict[str, Any]]:
+    """One row per camera of `task`: the mirror's images on `backend` against LIBERO's
+    (`against` ``libero``) or the mirror's on another backend (``c``), over seeds x steps 0,
+    `every`, ... `steps`."""
+    if backend not in BACKENDS or against not in ("libero", *BACKENDS):
+        raise ConfigError(
+            f"render backend={backend!r} against={against!r}; valid: backends {BACKENDS}, "
+            f"against libero or one of them"
+        )
+    # robosuite draws the state that physics step `observed - 1` (1-based) ends in
+    drawn = int(load_task(task).meta["observation_substep"]) - 1
+    ref = libero_states(task, seeds, steps, every, image_size, drawn)
+    ours = backend_images(task, backend, image_size, ref)
+    theirs = ref if against == "libero" else backend_images(task, against, image_size, ref)
     return [
         {
             "task": task,
             "camera": key,
             "mjcf_camera": cam,
             "image_size": image_size,
+            "backend": backend,
+            "against": against,
             "states": len(ref["qpos"]),
-            **pixel_agreement(ours[key], ref[key]),
+            **pixel_agreement(ours[key], theirs[key]),
         }
         for key, cam in CAMERAS.items()
     ]
@@ -138,12 +173,14 @@ def task_rows(
 def format_table(rows: Sequence[dict[str, Any]]) -> str:
     """The pixel agreement table in markdown."""
     lines = [
-        f"| task | camera | states | pixels within {TOL}/255 | MAE (1/255) | SSIM |",
-        "|---|---|---|---|---|---|",
+        f"| task | camera | backend | against | states | pixels within {TOL}/255 "
+        "| MAE (1/255) | SSIM |",
+        "|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
         lines.append(
-            f"| `{r['task']}` | `{r['camera']}` | {r['states']} | {100 * r['within']:.2f}% | "
+            f"| `{r['task']}` | `{r['camera']}` | `{r.get('backend', 'c')}` | "
+            f"{r.get('against', 'libero')} | {r['states']} | {100 * r['within']:.2f}% | "
             f"{r['mae']:.2f} | {r['ssim']:.4f} |"
         )
     return "\n".join(lines)
@@ -159,11 +196,18 @@ def main(argv: Sequence[str] | None = None) -> None:
     ap.add_argument("--steps", type=int, default=20, help="actions played per seed")
     ap.add_argument("--every", type=int, default=10, help="compare every this many steps")
     ap.add_argument("--image-size", type=int, default=128)
+    ap.add_argument("--backend", choices=BACKENDS, default="c", help="the mirror's renderer")
+    ap.add_argument(
+        "--against",
+        choices=("libero", *BACKENDS),
+        default="libero",
+        help="compare with LIBERO's images or the mirror's on this backend",
+    )
     ap.add_argument("--out", type=Path, default=None, help="JSON file for the rows")
     a = ap.parse_args(argv)
     rows: list[dict[str, Any]] = []
     for task in a.tasks:
-        rows += task_rows(task, a.seeds, a.steps, a.every, a.image_size)
+        rows += task_rows(task, a.seeds, a.steps, a.every, a.image_size, a.backend, a.against)
         print("\n".join(format_table(rows).splitlines()[-2:]), flush=True)
         if a.out is not None:
             write_text_atomic(a.out, json.dumps(rows, indent=1))

@@ -22,6 +22,13 @@ SIZE = 32
 # LIBERO's hidden sites drawn, about 44% mirrored left-right, at 128).
 MIN_WITHIN = 0.97
 MIN_SSIM = 0.9
+# warp against c, libero_object/0's initial states 0 and 1 at 32 x 32: measured 36.3%
+# (image) and 53.8% (wrist) of pixels within 8/255, SSIM 0.50 and 0.56; the same images
+# flipped left-right 20.9% and 28.4%, SSIM 0.15 and 0.26; with the sRGB floor undecoded about
+# 13% and 20% (against LIBERO's). warp has no mipmaps, so minified textures alias (the floor,
+# 2048-px labels on objects a few pixels wide): untextured, the two agree on 91% at 64 x 64.
+WARP_MIN_WITHIN = {"image": 0.3, "wrist_image": 0.4}
+WARP_MIN_SSIM = 0.4
 
 
 def test_ssim_closed_forms() -> None:
@@ -53,8 +60,10 @@ def test_pixel_agreement_counts_pixels_by_their_worst_channel() -> None:
 def test_camera_options_are_checked_before_any_export() -> None:
     with pytest.raises(ConfigError, match="option image_size=4: must be >= 8"):
         LiberoMjxOptions(image_size=4)
-    with pytest.raises(ConfigError, match=r"image_size renders on backend c only.*'warp'"):
-        LiberoMjx(LiberoMjxOptions(image_size=32), backend="warp")
+    with pytest.raises(ConfigError, match=r"image_size renders on backend c .* or warp .*'mjx'"):
+        LiberoMjx(LiberoMjxOptions(image_size=32), backend="mjx")
+    with pytest.raises(ConfigError, match="render backend='mjx'"):
+        render.task_rows(TASK, [0], backend="mjx")
 
 
 @pytest.mark.worker
@@ -95,3 +104,30 @@ def test_cameras_leave_the_physics_unchanged() -> None:
         runs.append(np.asarray(s.data))  # the float64 MuJoCo state, as its raw bits
         backend.close()
     np.testing.assert_array_equal(runs[0], runs[1])
+
+
+@pytest.mark.worker
+@pytest.mark.heavy
+def test_warp_images_agree_with_mujocos_renderer_on_the_same_states() -> None:
+    """`warp` (MuJoCo-Warp's renderer, CPU mode) against `c` (MuJoCo's, which matches
+    LIBERO's pixels) on two of libero_object/0's initial states at 32 x 32. The bounds sit
+    under the measured agreement (see `WARP_*`) and above what the same images flipped
+    left-right score, so a flip, a wrong camera or undecoded sRGB floor fails them."""
+    from worker_envs import require_worker_envs
+
+    require_worker_envs("lerobot-libero", module=False)
+    task = "libero_object/0"
+    model = LiberoMjx(LiberoMjxOptions(task=task)).mj_model
+    states = np.asarray(load_task(task).init_states[:2])
+    ref = {
+        "qpos": states[:, 1 : 1 + model.nq],
+        "qvel": states[:, 1 + model.nq :],
+        "init": np.arange(2),
+    }
+    warp = render.backend_images(task, "warp", SIZE, ref)
+    c = render.backend_images(task, "c", SIZE, ref)
+    for camera in ("image", "wrist_image"):
+        got = render.pixel_agreement(warp[camera], c[camera])
+        flipped = render.pixel_agreement(warp[camera][:, :, ::-1], c[camera])
+        assert got["within"] >= WARP_MIN_WITHIN[camera] > flipped["within"], (got, flipped)
+        assert got["ssim"] >= WARP_MIN_SSIM > flipped["ssim"], (got, flipped)

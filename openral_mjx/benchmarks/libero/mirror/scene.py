@@ -20,12 +20,13 @@ reproduces of LIBERO's `OffScreenRenderEnv` (robosuite 1.4):
 - **Expert entry** (option ``expert``, on by default): the moved object's position and its
   target body's pose (`export.expert_frames`), from the data the control step's last physics
   step leaves, as the host scene's workers read them; what `libero-expert` plays from.
-- **Cameras** (option ``image_size``, backend `c`): ``image`` (agentview) and ``wrist_image``
-  (robot0_eye_in_hand) as the host scene gives them, drawn by MuJoCo's renderer from the model
-  with LIBERO's visual geoms, textures and lights. robosuite renders them when it samples its
-  observables (the same physics step as the state), from the data that step leaves, whose
-  poses are those of the state one physics step earlier: the mirror draws that state. The
-  observation is then the host scene's dict instead of a flat vector.
+- **Cameras** (option ``image_size``, backend `c` or `warp`): ``image`` (agentview) and
+  ``wrist_image`` (robot0_eye_in_hand) as the host scene gives them, drawn from the model with
+  LIBERO's visual geoms, textures and lights by MuJoCo's renderer (`c`) or MuJoCo-Warp's batch
+  renderer (`warp`). robosuite renders them when it samples its observables (the same physics
+  step as the state), from the data that step leaves, whose poses are those of the state one
+  physics step earlier: the mirror draws that state, and only at that physics step of the 25.
+  The observation is then the host scene's dict instead of a flat vector.
 - **Success**: the task's BDDL goal, as LIBERO's predicates evaluate it (`goal`); it ends
   the episode, as on the host scene.
 """
@@ -153,10 +154,10 @@ class LiberoMjx(Scene):
         self.options = o = options or LiberoMjxOptions()
         self.task = o.task
         cameras = o.image_size is not None
-        if cameras and resolve_backend_name(backend) != "c":
+        if cameras and resolve_backend_name(backend) not in ("c", "warp"):
             raise ConfigError(
-                f"libero_mjx option image_size renders on backend c only for now (MuJoCo's "
-                f"renderer), not {resolve_backend_name(backend)!r}"
+                f"libero_mjx option image_size renders on backend c (MuJoCo's renderer) or "
+                f"warp (MuJoCo-Warp's), not {resolve_backend_name(backend)!r}"
             )
         self.export = t = load_task(o.task)
         self.spec = physics_spec(t, visuals=cameras)
@@ -192,10 +193,16 @@ class LiberoMjx(Scene):
         m = self.mj_model
         self.n_substeps = int(meta["n_substeps"])
         self.observed_substep = int(meta["observation_substep"])
-        if cameras and self.observed_substep < 2:
+        # The 0-based physics step whose readout draws the cameras: robosuite draws the poses
+        # its observed step computed before integrating, those of the state one step earlier.
+        # `warp`'s readout after a step holds those same poses (`mjx.step`'s forward pass,
+        # as `mj_step`'s), so it draws the observed step itself; `c` draws the state a step
+        # ends in (`c_render`), so it draws the step before.
+        self.drawn_substep = self.observed_substep - (2 if self.backend.name == "c" else 1)
+        if cameras and self.drawn_substep < 0:
             raise ConfigError(
                 f"LIBERO task {o.task}: robosuite observes physics step {self.observed_substep}"
-                " of a control step; the mirror's cameras draw one step before it (>= 2)"
+                " of a control step; the mirror's cameras on c draw one step before it (>= 2)"
             )
         self.dynamics = RobotDynamics(self.spec, compiled, meta["arm_joints"], meta["eef_site"])
         joint = lambda n: m.joint(n)  # noqa: E731
@@ -366,8 +373,8 @@ class LiberoMjx(Scene):
             return p, c, obs
 
         carry = (physics, controller, jnp.zeros(STATE_SIZE, jnp.float32))
-        if self.cameras:  # draw the end of physics step `observed_substep - 1` only
-            drawn = self.observed_substep - 2  # its 0-based index
+        if self.cameras:  # render at physics step `drawn_substep` only
+            drawn = self.drawn_substep
             plain = functools.partial(substep, render=False)
             carry = jax.lax.fori_loop(0, drawn, plain, carry)
             carry = substep(jnp.int32(drawn), carry)

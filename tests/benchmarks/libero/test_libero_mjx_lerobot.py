@@ -7,7 +7,10 @@ lerobot's own LIBERO env (`data/lerobot_libero_reference.py`: lerobot's `LiberoE
 `preprocess_observation` and `LiberoProcessorStep`), reset to the same seeds and playing the
 actions the policy sent to the mirror: the same feature names, shapes, dtype and scaling, the
 images the same way up and within 8/255 almost everywhere, the same state and task string.
-Seeds replayed in the other batch slot give bit-identical inputs and actions.
+Seeds replayed in the other batch slot give bit-identical inputs and actions; a small
+Diffusion (slow tier: another compile) gets the same episodes per seed when run twice.
+The module's ACT part took 346 s on 2 cores at load 6-7 (CPU 180 s): the mirror's compile
+with its cameras on `c` (its host callbacks are not cacheable) and two lerobot imports.
 """
 
 from __future__ import annotations
@@ -73,15 +76,16 @@ class RecordingWorker(Worker):
         return reply
 
 
-@pytest.fixture(scope="module")
-def run(tmp_path_factory):
-    """ACT on the mirror for seeds 0, 1 then 1, 0 (two chunks of two envs, one compile); the
-    recorded calls, the per-seed results and the options the policy implied."""
-    root = tmp_path_factory.mktemp("libero_act")
-    policy_dir = root / "act"
+def _build(kind: str, path: Path) -> str:
+    """A small random-weight `kind` policy with LIBERO's features, saved at `path`."""
     build = "from openral_mjx.host.lerobot_server import build_random_policy as b; "
-    _lerobot(["-c", build + f"b('act', {str(policy_dir)!r}, {FEATURES!r}, 7, seed=5)"])
-    spec = f"lerobot:{policy_dir}"
+    _lerobot(["-c", build + f"b({kind!r}, {str(path)!r}, {FEATURES!r}, 7, seed=5)"])
+    return f"lerobot:{path}"
+
+
+def _on_mirror(spec: str, seeds: list[int]) -> SimpleNamespace:
+    """`spec` on the mirror, `seeds` in chunks of two envs (one compile), through the policy
+    server: the recorded calls, the per-seed results, the options the policy implied."""
     options = {"task": TASK}
     implied = lerobot.implied_camera_options(spec, SCENES.get("libero_mjx").options_cls, options)
     scene = build_scene("libero_mjx", {**options, **implied}, backend="c", n_envs=2, threads=2)
@@ -92,14 +96,22 @@ def run(tmp_path_factory):
         policy = make_policy(spec, scene)
         try:
             results, _ = run_seeds(
-                scene, policy, None, seeds=np.array([0, 1, 1, 0]), n_envs=2, max_steps=STEPS
+                scene, policy, None, seeds=np.array(seeds), n_envs=2, max_steps=STEPS
             )
         finally:
             policy.close()
             scene.close()
-    return SimpleNamespace(
-        calls=list(RecordingWorker.calls), results=results, implied=implied, scene=scene, root=root
-    )
+    calls = list(RecordingWorker.calls)
+    return SimpleNamespace(calls=calls, results=results, implied=implied, scene=scene)
+
+
+@pytest.fixture(scope="module")
+def run(tmp_path_factory):
+    """ACT on the mirror for seeds 0, 1 then 1, 0 (two chunks of two envs, one compile)."""
+    root = tmp_path_factory.mktemp("libero_act")
+    out = _on_mirror(_build("act", root / "act"), [0, 1, 1, 0])
+    out.root = root
+    return out
 
 
 @pytest.fixture(scope="module")
@@ -169,3 +181,18 @@ def test_each_seed_gets_the_same_inputs_and_actions_in_either_slot(run):
     r = run.results
     for key in ("success", "steps", "total_reward"):
         np.testing.assert_array_equal(np.asarray(r[key])[:2], np.asarray(r[key])[2:][::-1])
+
+
+@pytest.mark.slow  # another compile of the mirror: 3-5 min on 2 busy cores
+def test_diffusion_samples_the_same_episodes_per_seed(tmp_path):
+    """A small Diffusion (two observation steps, noise drawn for the whole batch) runs on the
+    mirror in aligned chunks; seeds 0, 1 played twice get bit-identical inputs and actions
+    (its runner reseeds torch when every env starts)."""
+    out = _on_mirror(_build("diffusion", tmp_path / "diffusion"), [0, 1, 0, 1])
+    assert out.implied == {"image_size": SIZE} and len(out.calls) == 2 * STEPS
+    for t in range(STEPS):
+        a, b = out.calls[t], out.calls[STEPS + t]
+        assert set(a["obs"]) == set(FEATURES)
+        for key in FEATURES:
+            np.testing.assert_array_equal(a["obs"][key], b["obs"][key])
+        np.testing.assert_array_equal(a["action"], b["action"])

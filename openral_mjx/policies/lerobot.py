@@ -112,8 +112,8 @@ def implied_camera_options(
       `obs_rgb_size` ((W, H) of them), where the scene renders named RGB cameras (its options
       have both) and the features share one size;
     - `image_size` (their side), where the scene renders its own cameras square at one size
-      (LIBERO, its mirror, robosuite, PushT: options with `image_size`) and the features are
-      all square RGB of one size.
+      (LIBERO, its mirror, robosuite, PushT, MetaWorld: options with `image_size`) and the
+      features are all square RGB of one size.
 
     Empty otherwise; a camera the scene cannot serve is then `lerobot_policy`'s error."""
     if not policy.startswith("lerobot:") or not dataclasses.is_dataclass(options_cls):

@@ -23,8 +23,12 @@ camera); ``observation.image`` takes
 gym-env names, e.g. its MetaWorld env's); ``observation.environment_state`` takes
 ``environment_state`` or ``object``; in a scene whose observation is one flat vector, both
 state features take that vector, less its sensor slices (`scene_arrays`: each rendered camera
-is its own ``rgb_CAMERA`` image). Images are (H, W, C) in the scene (uint8 from host scenes,
-float in [0, 1] from ours) and (C, H, W) in the policy's features; shapes must agree.
+is its own ``rgb_CAMERA`` image). Images are (H, W, C) in the scene (uint8 from host scenes
+and LIBERO's mirror, float in [0, 1] from our other scenes) and (C, H, W) in the policy's
+features; shapes must agree.
+Where `--opt` sets no cameras, the policy's image features choose them
+(`implied_camera_options`): `obs_rgb_cameras`/`obs_rgb_size` on our scenes, `image_size` on
+LIBERO's and the other host scenes that render square cameras.
 
 Language. Every batch carries the scene's `instruction` under lerobot's ``task`` key (one
 string per env), as lerobot's own evaluation hands every policy its env's task description:

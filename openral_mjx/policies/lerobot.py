@@ -23,8 +23,12 @@ camera); ``observation.image`` takes
 gym-env names, e.g. its MetaWorld env's); ``observation.environment_state`` takes
 ``environment_state`` or ``object``; in a scene whose observation is one flat vector, both
 state features take that vector, less its sensor slices (`scene_arrays`: each rendered camera
-is its own ``rgb_CAMERA`` image). Images are (H, W, C) in the scene (uint8 from host scenes,
-float in [0, 1] from ours) and (C, H, W) in the policy's features; shapes must agree.
+is its own ``rgb_CAMERA`` image). Images are (H, W, C) in the scene (uint8 from host scenes
+and LIBERO's mirror, float in [0, 1] from our other scenes) and (C, H, W) in the policy's
+features; shapes must agree.
+Where `--opt` sets no cameras, the policy's image features choose them
+(`implied_camera_options`): `obs_rgb_cameras`/`obs_rgb_size` on our scenes, `image_size` on
+LIBERO's and the other host scenes that render square cameras.
 
 Language. Every batch carries the scene's `instruction` under lerobot's ``task`` key (one
 string per env), as lerobot's own evaluation hands every policy its env's task description:
@@ -80,37 +84,90 @@ def read_features(path: Path) -> tuple[dict[str, tuple[str, tuple[int, ...]]], i
     return inputs, int(np.prod(action))
 
 
+def policy_images(path: Path) -> dict[str, tuple[int, ...]]:
+    """The policy's image features (``observation.images.NAME`` and PushT's
+    ``observation.image``), name -> (C, H, W), from its config.json."""
+    features, _ = read_features(path)
+    return {
+        name: shape
+        for name, (kind, shape) in features.items()
+        if kind == "VISUAL"
+        and (name == "observation.image" or name.startswith("observation.images."))
+        and len(shape) == 3
+    }
+
+
+def square_size(images: Mapping[str, tuple[int, ...]]) -> int | None:
+    """The one side of `images` where all are RGB, square and the same size; else None."""
+    sizes = {(shape[0], shape[1], shape[2]) for shape in images.values()}
+    if len(sizes) != 1:
+        return None
+    ((channels, height, width),) = sizes
+    return height if channels == 3 and height == width else None
+
+
 def implied_camera_options(
     policy: str, options_cls: type, options: Mapping[str, Any] | None
 ) -> dict[str, Any]:
     """Scene options a `lerobot:PATH` policy's image features imply, so that its cameras need
-    no `--opt`: `obs_rgb_cameras` (the NAMEs of its ``observation.images.NAME`` features) and
-    `obs_rgb_size` ((W, H) of them), where the scene renders RGB cameras (its options have
-    both), the features share one size, the policy maps no keys by hand, and `options` set
-    neither. Empty otherwise; an unknown camera is then the scene's own error."""
+    no `--opt`, unless `options` set them or the policy maps its keys by hand (`KEYS_FILE`):
+
+    - `obs_rgb_cameras` (the NAMEs of its ``observation.images.NAME`` features) and
+      `obs_rgb_size` ((W, H) of them), where the scene renders named RGB cameras (its options
+      have both) and the features share one size;
+    - `image_size` (their side), where the scene renders its own cameras square at one size
+      (LIBERO, its mirror, robosuite, PushT, MetaWorld: options with `image_size`) and the
+      features are all square RGB of one size.
+
+    Empty otherwise; a camera the scene cannot serve is then `lerobot_policy`'s error."""
     if not policy.startswith("lerobot:") or not dataclasses.is_dataclass(options_cls):
         return {}
     names = {f.name for f in dataclasses.fields(options_cls)}
     given = set(options or {})
-    if not {"obs_rgb_cameras", "obs_rgb_size"} <= names or given & {
-        "obs_rgb_cameras",
-        "obs_rgb_size",
-    }:
-        return {}
     path = Path(policy.removeprefix("lerobot:")).expanduser()
     if not (path / "config.json").is_file() or (path / KEYS_FILE).is_file():
         return {}
-    features, _ = read_features(path)
-    images = {
-        name.removeprefix("observation.images."): shape
-        for name, (kind, shape) in features.items()
-        if kind == "VISUAL" and name.startswith("observation.images.") and len(shape) == 3
-    }
-    sizes = {(shape[2], shape[1]) for shape in images.values()}
-    if not images or len(sizes) != 1 or any(shape[0] != 3 for shape in images.values()):
-        return {}
-    (size,) = sizes
-    return {"obs_rgb_cameras": sorted(images), "obs_rgb_size": list(size)}
+    rgb = {"obs_rgb_cameras", "obs_rgb_size"}
+    if rgb <= names and not given & rgb:
+        images = {
+            k.removeprefix("observation.images."): s
+            for k, s in policy_images(path).items()
+            if k.startswith("observation.images.")
+        }
+        sizes = {(shape[2], shape[1]) for shape in images.values()}
+        if not images or len(sizes) != 1 or any(shape[0] != 3 for shape in images.values()):
+            return {}
+        (size,) = sizes
+        return {"obs_rgb_cameras": sorted(images), "obs_rgb_size": list(size)}
+    if "image_size" in names and "image_size" not in given:
+        side = square_size(policy_images(path))
+        return {} if side is None else {"image_size": side}
+    return {}
+
+
+def check_cameras(scene: Any, arg: str, path: Path, observation: Mapping[str, Any]) -> None:
+    """A one-line ConfigError where the policy reads images and the scene, one that renders
+    square cameras by option `image_size` (LIBERO's mirror), draws none or the wrong size."""
+    options = getattr(scene, "options", None)
+    if not hasattr(options, "image_size") or (path / KEYS_FILE).is_file():
+        return
+    images = policy_images(path)
+    if not images:
+        return
+    shapes = sorted({tuple(s) for s in images.values()})
+    side = square_size(images)
+    fix = f"--opt image_size={side}" if side else "a policy whose images are square, one size"
+    if not any(len(v.shape) == 3 for v in observation.values()):
+        raise ConfigError(
+            f"lerobot policy {arg!r} reads images {sorted(images)} of (C, H, W) {shapes}; "
+            f"scene {scene.name!r} renders none without option image_size: {fix}"
+        )
+    size = options.image_size
+    if side != size:
+        raise ConfigError(
+            f"lerobot policy {arg!r} reads images {sorted(images)} of (C, H, W) {shapes}; "
+            f"scene {scene.name!r} renders square RGB of option image_size={size}: {fix}"
+        )
 
 
 def scene_arrays(scene: Any) -> dict[str, jax.ShapeDtypeStruct]:
@@ -283,6 +340,7 @@ def lerobot_policy(scene: Any, arg: str | None) -> Policy:
         if not isinstance(explicit, dict):
             raise ConfigError(f"{path / KEYS_FILE}: expected a mapping feature: scene_key")
     observation = scene_arrays(scene)
+    check_cameras(scene, arg, path, observation)
     keys = key_map(features, observation, explicit)
     if in_process():
         return _in_process(scene, arg, path, keys, action_size)

@@ -1,6 +1,8 @@
 """Which scene observation feeds which lerobot input feature (no torch needed)."""
 
 import json
+from pathlib import Path
+from types import SimpleNamespace
 
 import jax
 import jax.numpy as jnp
@@ -10,6 +12,7 @@ import pytest
 from openral_mjx.core.errors import ConfigError
 from openral_mjx.evaluation import build_scene
 from openral_mjx.policies.lerobot import (
+    check_cameras,
     implied_camera_options,
     key_map,
     lerobot_policy,
@@ -186,3 +189,58 @@ def test_a_policys_cameras_set_the_scenes_rgb_options(tmp_path):
         },
     )
     assert implied_camera_options(mixed, push, None) == {}  # no one size fits both
+
+
+LIBERO_FEATURES = {
+    "observation.images.image": ("VISUAL", (3, 32, 32)),
+    "observation.images.image2": ("VISUAL", (3, 32, 32)),
+    "observation.state": ("STATE", (8,)),
+}
+
+
+def test_a_libero_policys_image_side_sets_image_size(tmp_path):
+    """A policy saved for LIBERO (lerobot's `observation.images.image`/`image2`, square)
+    sets `image_size` on the mirror and on the host scene, unless given; images of two sizes
+    or not square imply nothing (`check_cameras` then says why)."""
+    from openral_mjx.scenes import SCENES
+
+    spec = _config(tmp_path / "act", LIBERO_FEATURES)
+    for scene in ("libero_mjx", "libero"):
+        options = SCENES.get(scene).options_cls
+        assert implied_camera_options(spec, options, None) == {"image_size": 32}
+        assert implied_camera_options(spec, options, {"image_size": 64}) == {}
+    mirror = SCENES.get("libero_mjx").options_cls
+    state_only = _config(tmp_path / "state", {"observation.state": ("STATE", (8,))})
+    assert implied_camera_options(state_only, mirror, None) == {}
+    wide = _config(tmp_path / "wide", {"observation.images.image": ("VISUAL", (3, 32, 48))})
+    assert implied_camera_options(wide, mirror, None) == {}
+
+
+def test_cameras_a_scene_cannot_serve_are_one_line_errors(tmp_path):
+    """On a scene whose cameras follow option `image_size`: none rendered, or another size,
+    is a one-line ConfigError naming the option's value to give."""
+    path = Path(_config(tmp_path / "act", LIBERO_FEATURES).removeprefix("lerobot:"))
+    flat = {"obs": SD((18,), np.float32)}
+    none = SimpleNamespace(name="libero_mjx", options=SimpleNamespace(image_size=None))
+    with pytest.raises(
+        ConfigError, match="renders none without option image_size: --opt image_size=32"
+    ) as e:
+        check_cameras(none, "act", path, flat)
+    assert "\n" not in str(e.value)
+    big = SimpleNamespace(name="libero_mjx", options=SimpleNamespace(image_size=64))
+    images = {
+        "image": SD((64, 64, 3), np.uint8),
+        "wrist_image": SD((64, 64, 3), np.uint8),
+        "state": SD((8,), np.float32),
+    }
+    with pytest.raises(ConfigError, match="image_size=64: --opt image_size=32"):
+        check_cameras(big, "act", path, images)
+    right = SimpleNamespace(name="libero_mjx", options=SimpleNamespace(image_size=32))
+    check_cameras(right, "act", path, images)  # the size the policy reads: no error
+    wide = Path(
+        _config(
+            tmp_path / "wide", {"observation.images.image": ("VISUAL", (3, 32, 48))}
+        ).removeprefix("lerobot:")
+    )
+    with pytest.raises(ConfigError, match="a policy whose images are square"):
+        check_cameras(none, "wide", wide, flat)

@@ -53,7 +53,9 @@ class _Nut(MirrorTask):
     has_reward = True
     density: str
 
-    def _grab(self, obs: jax.Array, view: View, episode: Mapping[str, Any], action: jax.Array):
+    def _grab(
+        self, obs: jax.Array, view: View, episode: Mapping[str, Any], action: jax.Array
+    ) -> jax.Array:
         """The caging reward on the handle's end, its x snapped to the hand's within half the
         handle's length (MetaWorld treats the handle as a sphere there)."""
         hand, wrench = obs[:3], obs[4:7]

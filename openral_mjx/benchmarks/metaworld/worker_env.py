@@ -183,6 +183,22 @@ class MetaWorldEnv:
             "first_success": int(hits[0]) if hits.size else -1,
         }
 
+    def expert_trace(self, rand_vec: np.ndarray, steps: int) -> dict[str, np.ndarray]:
+        """`steps` steps of the scripted expert from `rand_vec` (on past success), in one call:
+        per step the action, MetaWorld's `step` reward and observation, and the joint state
+        and body positions it ends in (what reward checks put into the mirror's physics)."""
+        obs, _ = self.reset(options={"rand_vec": rand_vec})
+        trace: dict[str, list] = {}
+        for _ in range(steps):
+            action = obs["expert_action"]
+            obs, reward, _, _, _ = self.step(action)
+            state = self.state()
+            row = {"action": action, "reward": reward, "obs": obs["obs"]}
+            row.update({k: state[k] for k in ("qpos", "qvel", "body_pos")})
+            for k, v in row.items():
+                trace.setdefault(k, []).append(v)
+        return {k: np.asarray(v) for k, v in trace.items()}
+
     def step(self, action: np.ndarray) -> tuple[dict, float, bool, bool, dict]:
         a = np.clip(np.asarray(action, np.float32), -1.0, 1.0)
         raw, reward, _, truncated, info = self.env.step(a)

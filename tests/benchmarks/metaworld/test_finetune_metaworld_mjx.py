@@ -1,8 +1,9 @@
 """PPO on the `metaworld_mjx` mirror, on the CPU (`c`): the reward it trains on is MetaWorld's
-(checked against MetaWorld itself, in its worker environment), a task whose reward is not
-ported is refused, and a small run improves reach-v3 on held-out seeds, by the run's own paired
-comparison of the final policy against the initial one. The mirror reads MetaWorld's model from
-the `metaworld` worker environment: without it these tests are skipped (CI creates it)."""
+on all 50 tasks (checked against MetaWorld itself, in its worker environment), a task whose
+reward were not ported would be refused, and a small run improves reach-v3 on held-out seeds,
+by the run's own paired comparison of the final policy against the initial one. The mirror
+reads MetaWorld's model from the `metaworld` worker environment: without it these tests are
+skipped (CI creates it)."""
 
 from __future__ import annotations
 
@@ -97,8 +98,23 @@ def test_reward_is_metaworlds(task):
     assert diff.max() < 0.5 and diff.mean() < 0.05, (diff.max(), diff.mean())
 
 
+@pytest.fixture(scope="module")
+def expert_worker():
+    """One MetaWorld worker on the mirror's MuJoCo (engine ``ours``), re-initialised for each
+    task: starting a worker took ~2.5 s of a task's ~6 s check."""
+    with agreement.host_workers("reach-v3", 1, engine="ours") as (worker,):
+        yield worker
+
+
+# The seed each task's check starts from: 0, except where MetaWorld's reward does not get
+# through its stages in the expert's first 150 steps there (disassemble-v3: 0 for all 500
+# steps of seed 0; push-back-v3: below 0.15 for 300 steps of seeds 0, 1 and 3).
+SEEDS = {"disassemble-v3": 1, "push-back-v3": 2}
+EXPERT_STEPS = 150  # one seed's 150 expert steps take the reward through its stages
+
+
 @pytest.mark.parametrize("task", [t for t in rewarded_tasks() if not t.startswith("reach")])
-def test_reward_is_metaworlds_under_its_expert(task):
+def test_reward_is_metaworlds_under_its_expert(task, expert_worker):
     """MetaWorld's scripted expert drives MetaWorld's own code on the mirror's MuJoCo (engine
     ``ours``). The mirror's reward formula on MetaWorld's own states (its joint positions put
     into the mirror's physics) gives MetaWorld's reward to float32; the mirror replaying the
@@ -108,54 +124,91 @@ def test_reward_is_metaworlds_under_its_expert(task):
     scene = make_scene(
         "metaworld_mjx", {"task": task}, backend="c", settings=PhysicsSettings(threads=1)
     )
-    # One seed's 150 expert steps take the reward through its stages (a second seed doubled the
-    # 28 tasks' ~10 min on 2 cores).
-    seeds, steps = np.arange(1), 150
-    state = agreement.mirror_resets(scene, seeds)
+    seed = SEEDS.get(task, 0)
+    state = agreement.mirror_resets(scene, np.arange(seed, seed + 1))
     logic = TASKS[task]
-    actions = np.zeros((steps, len(seeds), 4), np.float32)
-    host_r, formula_r = np.zeros((len(seeds), steps)), np.zeros((len(seeds), steps))
-    host_obs = np.zeros((len(seeds), steps, 18))
     moved = bool(logic.moved_bodies)
+    episode = jax.tree.map(lambda x: x[0], state.info["episode"])
 
     @jax.jit
-    @jax.vmap  # the backends run batches (here of one)
-    def formula(qpos, qvel, body_pos, obs, episode, action):
+    @jax.vmap  # over the trace's steps (the backends run batches)
+    def formula(qpos, qvel, body_pos, obs, action):
         fields = {"body_pos": body_pos} if moved else None
         view = scene._view(scene.backend.init(qpos, qvel, fields=fields))
         return logic.reward(obs, view, episode, action)
 
-    with agreement.host_workers(task, 1, engine="ours") as (worker,):
-        for i in range(len(seeds)):
-            episode = jax.tree.map(lambda x, i=i: x[i], state.info["episode"])
-            obs, _ = _host(worker, "reset", options={"rand_vec": np.asarray(state.info["vec"][i])})
-            for t in range(steps):
-                actions[t, i] = obs["expert_action"]
-                obs, host_r[i, t], _, _, _ = _host(worker, "step", action=actions[t, i])
-                host_obs[i, t] = obs["obs"][:18]
-                h = _host(worker, "state")
-                args = (h["qpos"], h["qvel"], h["body_pos"], obs["obs"], episode, actions[t, i])
-                f32 = jax.tree.map(lambda x: jnp.asarray(x, jnp.float32)[None], args)
-                formula_r[i, t] = float(formula(*f32)[0])
+    init = {"op": "init", "factory": agreement.FACTORY, "kwargs": {"task": task}}
+    expert_worker.call(init, agreement.TIMEOUT_S)
+    vec = np.asarray(state.info["vec"][0])
+    trace = _host(expert_worker, "expert_trace", rand_vec=vec, steps=EXPERT_STEPS)
+    args = [trace[k] for k in ("qpos", "qvel", "body_pos", "obs", "action")]
+    formula_r = np.asarray(formula(*(jnp.asarray(a, jnp.float32) for a in args)))
+    host_r, actions = trace["reward"], trace["action"]
     step = jax.jit(jax.vmap(scene.step))
     mirror_r, mirror_obs = [], []
-    for t in range(steps):
-        state = step(state, jnp.asarray(actions[t]))
-        mirror_r.append(np.asarray(state.reward))
-        mirror_obs.append(np.asarray(state.obs[:, :18]))
+    for t in range(EXPERT_STEPS):
+        state = step(state, jnp.asarray(actions[t])[None])
+        mirror_r.append(float(state.reward[0]))
+        mirror_obs.append(np.asarray(state.obs[0, :18]))
     scene.close()
     assert host_r.max() - host_r.min() > 0.5, (host_r.min(), host_r.max())  # not constant
     np.testing.assert_allclose(formula_r, host_r, rtol=1e-4, atol=1e-3)
-    together = np.abs(np.stack(mirror_obs, axis=1) - host_obs).max(axis=-1) < 1e-3
-    assert together[:, :10].all()  # the replay starts where MetaWorld does
-    diff = np.abs(np.stack(mirror_r, axis=1) - host_r)[together]
+    together = np.abs(np.stack(mirror_obs) - trace["obs"][:, :18]).max(axis=-1) < 1e-3
+    assert together[:10].all()  # the replay starts where MetaWorld does
+    diff = np.abs(np.asarray(mirror_r) - host_r)[together]
     # within 0.1 (push: 0.018 at 1 mm apart) but where a threshold of the reward falls
-    # between the two states (shelf-place: one step in 300)
-    assert np.mean(diff < 0.1) >= 0.99, np.sort(diff)[-5:]
+    # between the two states: 1% of the steps, or one (stick-pull: one step in 93)
+    assert np.sum(diff >= 0.1) <= max(1, 0.01 * diff.size), np.sort(diff)[-5:]
+
+
+# MetaWorld takes bin-picking's in-place margin at the first step, the mirror at the reset:
+# where the first step moves the cube (7.7 mm on seed 3) the rewards part by up to 5.9e-3.
+FIRST_STEP_MARGIN = {"bin-picking-v3": 1e-2}
+
+
+@pytest.mark.slow  # 48 tasks x 5 seeds
+@pytest.mark.parametrize("task", [t for t in rewarded_tasks() if not t.startswith("reach")])
+def test_reward_formula_is_metaworlds_on_five_seeds(task, expert_worker):
+    """The formula half of `test_reward_is_metaworlds_under_its_expert` on seeds 0-4: the
+    mirror's reward on MetaWorld's own states under its expert is MetaWorld's `step` reward."""
+    scene = make_scene(
+        "metaworld_mjx", {"task": task}, backend="c", settings=PhysicsSettings(threads=1)
+    )
+    seeds = np.arange(5)
+    state = agreement.mirror_resets(scene, seeds)
+    logic = TASKS[task]
+    moved = bool(logic.moved_bodies)
+
+    @jax.jit
+    @jax.vmap  # over the trace's steps
+    def formula(qpos, qvel, body_pos, obs, action, episode):
+        fields = {"body_pos": body_pos} if moved else None
+        view = scene._view(scene.backend.init(qpos, qvel, fields=fields))
+        return logic.reward(obs, view, episode, action)
+
+    init = {"op": "init", "factory": agreement.FACTORY, "kwargs": {"task": task}}
+    expert_worker.call(init, agreement.TIMEOUT_S)
+    for i in seeds:
+        vec = np.asarray(state.info["vec"][i])
+        trace = _host(expert_worker, "expert_trace", rand_vec=vec, steps=EXPERT_STEPS)
+        episode = jax.tree.map(
+            lambda x, i=i: jnp.broadcast_to(x[i], (EXPERT_STEPS, *x.shape[1:])),
+            state.info["episode"],
+        )
+        args = [trace[k] for k in ("qpos", "qvel", "body_pos", "obs", "action")]
+        formula_r = np.asarray(formula(*(jnp.asarray(a, jnp.float32) for a in args), episode))
+        atol = FIRST_STEP_MARGIN.get(task, 1e-3)
+        np.testing.assert_allclose(
+            formula_r, trace["reward"], rtol=1e-4, atol=atol, err_msg=f"seed {i}"
+        )
+    scene.close()
 
 
 def test_ppo_refuses_a_task_without_reward(monkeypatch, capsys, tmp_path):
-    no_reward = next(name for name, t in TASKS.items() if not t.has_reward)
+    """Every task ports MetaWorld's reward; one that did not (`has_reward` False) would be
+    refused with a one-line error rather than trained on 0."""
+    no_reward = "soccer-v3"
+    monkeypatch.setattr(type(TASKS[no_reward]), "has_reward", False)
     out = tmp_path / "run"
     code, _, err = _finetune(
         monkeypatch, capsys, "ppo", *SCENE, "--task", no_reward, "--out", str(out)

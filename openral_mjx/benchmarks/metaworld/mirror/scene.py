@@ -185,6 +185,13 @@ class MetaWorldMjx(Scene):
         self._mocap_start = jnp.asarray(rest.mocap_pos, jnp.float32)
         self._moved_ids = np.array([m.body(b).id for b in t.moved_bodies], np.int64)
         self._body_pos = jnp.asarray(m.body_pos, jnp.float32)
+        # hinge and slide joints' (qpos, dof) addresses: a state's positions one physics step
+        # back are qpos - dt qvel there (MuJoCo integrates positions with the new velocity)
+        kinds = {int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE)}
+        scalar = [j for j in range(m.njnt) if int(m.jnt_type[j]) in kinds]
+        self._scalar_qpos = np.array([m.jnt_qposadr[j] for j in scalar], np.int64)
+        self._scalar_dof = np.array([m.jnt_dofadr[j] for j in scalar], np.int64)
+        self._timestep = float(m.opt.timestep)
         low = t.mocap_low if t.mocap_low is not None else t.hand_low
         high = t.mocap_high if t.mocap_high is not None else t.hand_high
         self._mocap_box = (jnp.asarray(low, jnp.float32), jnp.asarray(high, jnp.float32))
@@ -265,7 +272,7 @@ class MetaWorldMjx(Scene):
             fields = {"body_pos": self._body_pos.at[self._moved_ids].set(pos)}
         reset_ok = jnp.ones((), bool)
         if t.hand_reset_per_episode:
-            hand_qpos, hand_qvel, reset_ok = self._hand_reset(fields)
+            hand_qpos, hand_qvel, reset_ok, tcp = self._hand_reset(fields)
             qpos, qvel, _ = t.place(self.facts, vec, hand_qpos, hand_qvel)
         physics = self.backend.init(qpos, qvel, fields=fields)
         # an env whose simulated reset could not be trusted stays flagged (counted diverged)
@@ -273,8 +280,9 @@ class MetaWorldMjx(Scene):
         physics = physics.replace(quantities=q.replace(ok=q.ok & reset_ok))
         view = self._view(physics)
         episode = t.episode(self.facts, vec, view)
-        if not t.hand_reset_per_episode:  # else MetaWorld's comes from this episode's reset
-            episode = {**episode, "init_tcp": mw.init_tcp(self.facts)}
+        # MetaWorld's `init_tcp`: where the hand reset ends, shared or this episode's
+        init = tcp if t.hand_reset_per_episode else mw.init_tcp(self.facts)
+        episode = {**episode, "init_tcp": init}
         curr = self._current(view)
         if t.observes_before_place:  # the hand reset's state, with the moved bodies in place
             before = self.backend.init(hand_qpos, hand_qvel, fields=fields)
@@ -296,11 +304,15 @@ class MetaWorldMjx(Scene):
             info=info,
         )
 
-    def _hand_reset(self, fields: dict[str, jax.Array]) -> tuple[jax.Array, jax.Array, jax.Array]:
+    def _hand_reset(
+        self, fields: dict[str, jax.Array]
+    ) -> tuple[jax.Array, jax.Array, jax.Array, jax.Array]:
         """MetaWorld's hand reset simulated with this episode's fixed bodies in place (from
         the model's default joint state: MetaWorld resets the data before its second, final
         `reset_model`, whose hand reset sees the bodies the first one moved). Returns the
-        joint positions and velocities it ends in, and whether its physics stayed ok."""
+        joint positions and velocities it ends in (after the task's `settle_steps`), whether
+        its physics stayed ok, and the tcp centre its last hand-reset step leaves (MetaWorld's
+        ``init_tcp``)."""
         m = self.mj_model
         physics = self.backend.init(
             jnp.asarray(m.qpos0, jnp.float32), jnp.zeros(m.nv, jnp.float32), fields=fields
@@ -308,14 +320,22 @@ class MetaWorldMjx(Scene):
         mocap = self._mocap_start.at[self._mocap_id].set(jnp.asarray(self.logic.hand_init_pos))
         quat = jnp.broadcast_to(jnp.asarray(_MOCAP_QUAT, jnp.float32), (mocap.shape[0], 4))
         ctrl = jnp.array([-1.0, 1.0], jnp.float32)
-        physics = jax.lax.fori_loop(
-            0,
-            mw.HAND_RESET_STEPS + self.logic.settle_steps,  # then the reset's own steps
-            lambda _, p: self.backend.step(p, ctrl, mocap=(mocap, quat)),
-            physics,
-        )
+
+        def steps(n: int, physics: PhysicsState) -> PhysicsState:
+            return jax.lax.fori_loop(
+                0, n, lambda _, p: self.backend.step(p, ctrl, mocap=(mocap, quat)), physics
+            )
+
+        physics = steps(mw.HAND_RESET_STEPS, physics)
+        # MetaWorld reads the tcp as its last `mj_step` leaves the poses: those of the state
+        # before that step's integration (the hand's own joints are hinges and slides)
         q = physics.quantities
-        return q.qpos, q.qvel, q.ok
+        back = q.qvel[self._scalar_dof] * self._timestep
+        before = self.backend.init(q.qpos.at[self._scalar_qpos].add(-back), q.qvel, fields=fields)
+        tcp = self._view(before).tcp_center
+        physics = steps(self.logic.settle_steps, physics)  # then the reset's own steps
+        q = physics.quantities
+        return q.qpos, q.qvel, q.ok, tcp
 
     def check_reward(self) -> None:
         """`ConfigError` unless this task's reward is MetaWorld's (other tasks return 0):

@@ -17,7 +17,7 @@ clipped to) and reimplements the task's logic, one env, in JAX:
   and quaternion(s), in the convention MetaWorld uses for that task: ``xquat`` is w-x-y-z,
   scipy's ``Rotation.as_quat`` is x-y-z-w).
 - `success(obs, view, episode)`: ``info["success"]`` of MetaWorld's ``evaluate_state``.
-- `reward(...)`: MetaWorld's v2 reward where ported; else 0 (`has_reward` False).
+- `reward(...)`: MetaWorld's v2 reward (every task ports it: `has_reward`).
 
 Patterns many tasks share have one implementation here: `MovedBodyTask` (the vector is where a
 fixed body goes), `DrawnGoalTask` (the vector is (object, goal), success a distance to the goal)
@@ -299,6 +299,44 @@ def gripper_caging(
     if density == "low":
         return held
     raise ValueError(f"density {density!r}: 'high', 'medium' or 'low'")
+
+
+def pushing_caging(
+    view: View,
+    episode: Mapping[str, Any],
+    obj: jax.Array,
+    obj_radius: float,
+    grip_margin: float,
+    xz_thresh: float,
+) -> jax.Array:
+    """The ``_gripper_caging_reward`` that push-back, soccer, sweep and sweep-into define for
+    themselves (the task's view must hold ``leftpad`` and ``rightpad``; `episode`
+    ``obj_init_pos`` and ``init_tcp``): the mean of the caging (each pad within 0.05 of the
+    object in y, the tcp over it in x-z) and, once caged past 0.95, the gripping (each pad
+    within `obj_radius` + `grip_margin`). The grip action plays no part. Its "initial" pad
+    positions are live views of MuJoCo's data in MetaWorld, so the pads' margins are read from
+    the current pads."""
+    pad_margin = 0.05
+    left, right = view.body_pos("leftpad")[1], view.body_pos("rightpad")[1]
+    deltas = (obj[1] - right, left - obj[1])
+    margins = (
+        jnp.abs(jnp.abs(obj[1] - right) - pad_margin),
+        jnp.abs(jnp.abs(obj[1] - left) - pad_margin),
+    )
+    caging = [
+        tolerance(d, pad_margin, m, lower=obj_radius) for d, m in zip(deltas, margins, strict=True)
+    ]
+    grip = [
+        tolerance(d, obj_radius + grip_margin, m, lower=obj_radius)
+        for d, m in zip(deltas, margins, strict=True)
+    ]
+    xz = jnp.asarray([0, 2])
+    start = episode["obj_init_pos"]
+    xz_margin = jnp.linalg.norm(start[xz] - episode["init_tcp"][xz]) - xz_thresh
+    caging_xz = tolerance(jnp.linalg.norm(view.tcp_center[xz] - obj[xz]), xz_thresh, xz_margin)
+    caged = hamacher_product(hamacher_product(caging[0], caging[1]), caging_xz)
+    gripping = jnp.where(caged > 0.95, hamacher_product(grip[0], grip[1]), 0.0)
+    return (caged + gripping) / 2.0
 
 
 def init_tcp(facts: ModelFacts) -> jax.Array:

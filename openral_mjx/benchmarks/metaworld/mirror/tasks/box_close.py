@@ -18,7 +18,13 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from openral_mjx.benchmarks.metaworld.mirror.task import MirrorTask, ModelFacts, View
+from openral_mjx.benchmarks.metaworld.mirror.task import (
+    MirrorTask,
+    ModelFacts,
+    View,
+    hamacher_product,
+    tolerance,
+)
 
 LID_QPOS = 9  # MetaWorld's `_set_obj_xyz`: qpos[9:12] = pos, qvel[9:15] = 0
 LID_Z = float(np.float32(0.02))  # init_config["obj_init_pos"][-1] (a float32 array)
@@ -36,6 +42,7 @@ class BoxClose(MirrorTask):
     moved_bodies = ("boxbody",)
     hand_reset_per_episode = True  # the lid falls off the moved box during it
     settle_steps = 1
+    has_reward = True
 
     def accept(self, vec: jax.Array) -> jax.Array:
         return jnp.linalg.norm(vec[:2] - vec[3:5]) >= 0.25
@@ -59,6 +66,29 @@ class BoxClose(MirrorTask):
 
     def success(self, obs: jax.Array, view: View, episode: Mapping[str, Any]) -> jax.Array:
         return jnp.linalg.norm(obs[4:7] - episode["target_pos"]) < 0.08
+
+    def reward(
+        self, obs: jax.Array, view: View, episode: Mapping[str, Any], action: jax.Array
+    ) -> jax.Array:
+        """MetaWorld's v2: 2 x the grip effort with the hand at the lid's handle (kept above a
+        funnel round it), 8 x the lid lifted (0.2) and brought onto the box (0.8, z weighted
+        3); 10 on success; all times the lid's uprightness."""
+        hand = obs[:3]
+        lid = obs[4:7] + jnp.asarray([0.0, 0.0, 0.02], jnp.float32)
+        radius = jnp.linalg.norm(hand[:2] - lid[:2])
+        floor = jnp.where(
+            radius <= 0.02, 0.0, 0.04 * jnp.log(jnp.maximum(radius - 0.02, 1e-30)) + 0.4
+        )
+        above = jnp.where(hand[2] >= floor, 1.0, tolerance(floor - hand[2], 0.01, floor / 2.0))
+        ready = hamacher_product(above, tolerance(jnp.linalg.norm(hand - lid), 0.02, 0.5))
+        scale = jnp.asarray([1.0, 1.0, 3.0], jnp.float32)
+        placed = tolerance(jnp.linalg.norm((episode["target_pos"] - lid) * scale), 0.05, 0.25)
+        lifted = 0.2 * (lid[2] > 0.04) + 0.8 * placed
+        grab = (jnp.clip(action[3], -1.0, 1.0) + 1.0) / 2.0
+        reward = 2.0 * hamacher_product(grab, ready) + 8.0 * lifted
+        reward = jnp.where(self.success(obs, view, episode), 10.0, reward)
+        ideal = jnp.asarray([0.707, 0.0, 0.0, 0.707], jnp.float32)
+        return reward * jnp.maximum(1.0 - jnp.linalg.norm(obs[7:11] - ideal) / 0.2, 0.0)
 
 
 TASKS = (BoxClose(),)

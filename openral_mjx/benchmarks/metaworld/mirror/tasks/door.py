@@ -128,8 +128,9 @@ class DoorLock(MirrorTask):
     reset_high = (0.1, 0.85, 0.15)
     goal_low = hand_low  # goal_space = the hand's box
     goal_high = hand_high
-    bodies = ("lock_link", "door_link")
+    bodies = ("lock_link", "door_link", "leftpad")
     sites = ("lockStartLock",)
+    has_reward = True
     moved_bodies = ("door",)
     hand_reset_per_episode = True  # the arm brushes the moved lock on some seeds
     settle_steps = 1  # MetaWorld steps `frame_skip` times, then reads the lock's position
@@ -148,6 +149,20 @@ class DoorLock(MirrorTask):
 
     def success(self, obs: jax.Array, view: View, episode: Mapping[str, Any]) -> jax.Array:
         return jnp.abs(episode["target_pos"][2] - obs[6]) <= 0.02
+
+    def reward(
+        self, obs: jax.Array, view: View, episode: Mapping[str, Any], action: jax.Array
+    ) -> jax.Array:
+        """MetaWorld's v2: 2 x (the gripper open) x (the left pad at the lock, x weighted 1/4
+        and z 1/2), 8 x the lock pressed down (margin: the lock's length, 0.1). The pad's
+        margin is MetaWorld's ``init_left_pad``, a live view of the pad's current position,
+        so it is the current distance itself."""
+        obj = obs[4:7]
+        scale = jnp.asarray([0.25, 1.0, 0.5], jnp.float32)
+        to_pad = jnp.linalg.norm((obj - view.body_pos("leftpad")) * scale)
+        near = tolerance(to_pad, 0.01, to_pad)
+        pressed = tolerance(jnp.abs(episode["target_pos"][2] - obj[2]), 0.005, 0.1)
+        return 2.0 * hamacher_product(jnp.maximum(obs[3], 0.0), near) + 8.0 * pressed
 
 
 TASKS = (DoorOpen(), DoorClose(), DoorLock())

@@ -15,7 +15,7 @@ from typing import Any
 import jax
 import jax.numpy as jnp
 
-from openral_mjx.benchmarks.metaworld.mirror.task import MirrorTask, ModelFacts, View
+from openral_mjx.benchmarks.metaworld.mirror.task import MirrorTask, ModelFacts, View, tolerance
 
 LOCK_QPOS = 9  # MetaWorld's `_set_obj_xyz` writes qpos[9] / qvel[9] (the lock's hinge)
 
@@ -34,6 +34,7 @@ class DoorUnlock(MirrorTask):
     sites = ("lockStartUnlock",)
     moved_bodies = ("door",)
     hand_reset_per_episode = True  # the hand meets the lock for ~30% of door positions
+    has_reward = True
 
     def place(
         self, facts: ModelFacts, vec: jax.Array, qpos: jax.Array, qvel: jax.Array
@@ -51,6 +52,20 @@ class DoorUnlock(MirrorTask):
 
     def success(self, obs: jax.Array, view: View, episode: Mapping[str, Any]) -> jax.Array:
         return jnp.abs(episode["target_pos"][0] - obs[4]) <= 0.02
+
+    def reward(
+        self, obs: jax.Array, view: View, episode: Mapping[str, Any], action: jax.Array
+    ) -> jax.Array:
+        """MetaWorld's v2: 2 x the hand's shoulder (hand + (0, 0.055, 0.07)) at the lock (x
+        weighted 1/4, z 1/2), 8 x the lock pushed to the goal's x (margin 0.1)."""
+        offset = jnp.asarray([0.0, 0.055, 0.07], jnp.float32)
+        scale = jnp.asarray([0.25, 1.0, 0.5], jnp.float32)
+        lock = obs[4:7]
+        shoulder = jnp.linalg.norm((obs[:3] + offset - lock) * scale)
+        init = jnp.linalg.norm((episode["init_tcp"] + offset - episode["obj_init_pos"]) * scale)
+        ready = tolerance(shoulder, 0.02, init)
+        pushed = tolerance(jnp.abs(episode["target_pos"][0] - lock[0]), 0.005, 0.1)
+        return 2.0 * ready + 8.0 * pushed
 
 
 TASKS = (DoorUnlock(),)

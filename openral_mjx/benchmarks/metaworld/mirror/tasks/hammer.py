@@ -15,9 +15,17 @@ from typing import Any
 import jax
 import jax.numpy as jnp
 
-from openral_mjx.benchmarks.metaworld.mirror.task import MirrorTask, ModelFacts, View
+from openral_mjx.benchmarks.metaworld.mirror.task import (
+    MirrorTask,
+    ModelFacts,
+    View,
+    gripper_caging,
+    tolerance,
+)
 
 HAMMER_QPOS, HAMMER_DOF = 9, 9  # MetaWorld's `_set_hammer_xyz`: qpos[9:12], qvel[9:15]
+HANDLE_HALF_LENGTH = 0.07  # half MetaWorld's `HAMMER_HANDLE_LENGTH`
+HEAD_OFFSET = (0.16, 0.06, 0.0)  # the hammer's head, from its body
 
 
 class Hammer(MirrorTask):
@@ -28,8 +36,9 @@ class Hammer(MirrorTask):
     reset_high = (0.1, 0.5, 0.0)
     goal_low = (0.2399, 0.7399, 0.109)
     goal_high = (0.2401, 0.7401, 0.111)
-    bodies = ("hammer", "nail_link")
+    bodies = ("hammer", "nail_link", "leftpad", "rightpad")
     sites = ("goal",)
+    has_reward = True
 
     def place(
         self, facts: ModelFacts, vec: jax.Array, qpos: jax.Array, qvel: jax.Array
@@ -48,6 +57,25 @@ class Hammer(MirrorTask):
 
     def success(self, obs: jax.Array, view: View, episode: Mapping[str, Any]) -> jax.Array:
         return view.qpos("NailSlideJoint") > 0.09
+
+    def reward(
+        self, obs: jax.Array, view: View, episode: Mapping[str, Any], action: jax.Array
+    ) -> jax.Array:
+        """MetaWorld's v2: (2 x the handle caged, its x snapped to the hand's within half the
+        handle's length; 6 x the head lifted (0.1) and at the nail (0.9)) x the hammer lying
+        flat; 10 on success where that reward is above 5."""
+        hand, hammer = obs[:3], obs[4:7]
+        head = hammer + jnp.asarray(HEAD_OFFSET, jnp.float32)
+        near = jnp.abs(hammer[0] - hand[0]) < HANDLE_HALF_LENGTH
+        handle = hammer.at[0].set(jnp.where(near, hand[0], hammer[0]))
+        flat = jnp.maximum(
+            1.0 - jnp.linalg.norm(obs[7:11] - jnp.asarray([1.0, 0.0, 0.0, 0.0])) / 0.4, 0.0
+        )
+        grab = gripper_caging(view, episode, action, handle, 0.015, 0.02, 0.01)
+        to_nail = jnp.linalg.norm(episode["target_pos"] - head)
+        in_place = 0.1 * (head[2] > 0.02) + 0.9 * tolerance(to_nail, 0.02, 0.2)
+        reward = (2.0 * grab + 6.0 * in_place) * flat
+        return jnp.where(self.success(obs, view, episode) & (reward > 5.0), 10.0, reward)
 
 
 TASKS = (Hammer(),)

@@ -20,7 +20,9 @@ from openral_mjx.benchmarks.metaworld.mirror.task import (
     ModelFacts,
     MovedBodyTask,
     View,
+    hamacher_product,
     matrix_quat,
+    tolerance,
 )
 
 LEVER_RADIUS = 0.2
@@ -39,6 +41,7 @@ class LeverPull(MovedBodyTask):
     sites = ("leverStart",)
     geoms = ("objGeom",)
     moved_bodies = ("lever",)
+    has_reward = True
 
     def episode(self, facts: ModelFacts, vec: jax.Array, view: View) -> dict[str, jax.Array]:
         return {
@@ -53,6 +56,20 @@ class LeverPull(MovedBodyTask):
     def success(self, obs: jax.Array, view: View, episode: Mapping[str, Any]) -> jax.Array:
         angle = -view.qpos("LeverAxis")
         return jnp.abs(angle - math.pi / 2.0) <= math.pi / 24
+
+    def reward(
+        self, obs: jax.Array, view: View, episode: Mapping[str, Any], action: jax.Array
+    ) -> jax.Array:
+        """MetaWorld's v2: 10 x (the hand's shoulder, hand + (0, 0.055, 0.07), under the
+        lever's end, x and z weighted 4) x (the lever's end at the goal)."""
+        offset = jnp.asarray([0.0, 0.055, 0.07], jnp.float32)
+        scale = jnp.asarray([4.0, 1.0, 4.0], jnp.float32)
+        lever, start, target = obs[4:7], episode["lever_pos_init"], episode["target_pos"]
+        shoulder = jnp.linalg.norm((obs[:3] + offset - lever) * scale)
+        init = jnp.linalg.norm((episode["init_tcp"] + offset - start) * scale)
+        ready = tolerance(shoulder, 0.02, init)
+        in_place = tolerance(jnp.linalg.norm(lever - target), 0.04, jnp.linalg.norm(start - target))
+        return 10.0 * hamacher_product(ready, in_place)
 
 
 TASKS = (LeverPull(),)

@@ -21,21 +21,49 @@ from typing import Any
 import jax
 import jax.numpy as jnp
 
-from openral_mjx.benchmarks.metaworld.mirror.task import MirrorTask, ModelFacts, View
+from openral_mjx.benchmarks.metaworld.mirror.task import (
+    MirrorTask,
+    ModelFacts,
+    View,
+    gripper_caging,
+    tolerance,
+)
 
 OBJ_QPOS = 9  # MetaWorld's `_set_obj_xyz`: qpos[9:12] = pos, qvel[9:15] = 0
 OBJ_QVEL = 9
+WRENCH_HALF_LENGTH = 0.01  # half MetaWorld's `WRENCH_HANDLE_LENGTH`
 
 
 def _set_nut(qpos: jax.Array, qvel: jax.Array, pos: jax.Array) -> tuple[jax.Array, jax.Array]:
     return qpos.at[OBJ_QPOS : OBJ_QPOS + 3].set(pos), qvel.at[OBJ_QVEL : OBJ_QVEL + 6].set(0.0)
 
 
+def _laid_down(obs: jax.Array) -> jax.Array:
+    """MetaWorld's ``_reward_quat``: 1 - |observed quaternion - (0.707, 0, 0, 0.707)| / 0.4,
+    floored at 0."""
+    ideal = jnp.asarray([0.707, 0.0, 0.0, 0.707], jnp.float32)
+    return jnp.maximum(1.0 - jnp.linalg.norm(obs[7:11] - ideal) / 0.4, 0.0)
+
+
 class _Nut(MirrorTask):
     xml = "sawyer_xyz/sawyer_assembly_peg.xml"
-    bodies = ("RoundNut",)
+    bodies = ("RoundNut", "leftpad", "rightpad")
     sites = ("RoundNut", "RoundNut-8")
     moved_bodies = ("peg",)
+    has_reward = True
+    density: str
+
+    def _grab(
+        self, obs: jax.Array, view: View, episode: Mapping[str, Any], action: jax.Array
+    ) -> jax.Array:
+        """The caging reward on the handle's end, its x snapped to the hand's within half the
+        handle's length (MetaWorld treats the handle as a sphere there)."""
+        hand, wrench = obs[:3], obs[4:7]
+        near = jnp.abs(wrench[0] - hand[0]) < WRENCH_HALF_LENGTH
+        wrench = wrench.at[0].set(jnp.where(near, hand[0], wrench[0]))
+        return gripper_caging(
+            view, episode, action, wrench, 0.015, 0.02, 0.01, density=self.density
+        )
 
     def accept(self, vec: jax.Array) -> jax.Array:
         return jnp.linalg.norm(vec[:2] - vec[3:5]) >= 0.1
@@ -51,6 +79,7 @@ class Assembly(_Nut):
     reset_high = (0.0, 0.6, 0.02, 0.1, 0.85, 0.1)
     goal_low = (-0.1, 0.75, 0.1)
     goal_high = (0.1, 0.85, 0.1)
+    density = "medium"
 
     def place(
         self, facts: ModelFacts, vec: jax.Array, qpos: jax.Array, qvel: jax.Array
@@ -65,6 +94,29 @@ class Assembly(_Nut):
         error = episode["target_pos"] - view.site_pos("RoundNut")
         return (jnp.linalg.norm(error[:2]) < 0.02) & (error[2] > 0.0)
 
+    def reward(
+        self, obs: jax.Array, view: View, episode: Mapping[str, Any], action: jax.Array
+    ) -> jax.Array:
+        """MetaWorld's v2: (2 x the handle caged, 6 x the nut lifted (0.1) and brought down a
+        funnel over the peg (0.9, z weighted 3)) x the nut lying flat; 10 on success."""
+        centre = view.site_pos("RoundNut")
+        error = episode["target_pos"] - centre
+        radius = jnp.linalg.norm(error[:2])
+        success = (radius < 0.02) & (error[2] > 0.0)
+        threshold = jnp.where(success, 0.02, 0.01)  # wider once on the peg
+        height = jnp.where(
+            radius > threshold,
+            0.02 * jnp.log(jnp.maximum(radius - threshold, 1e-30)) + 0.2,
+            0.0,
+        )
+        error = error.at[2].set(height - centre[2])
+        scale = jnp.asarray([1.0, 1.0, 3.0], jnp.float32)
+        lifted = (centre[2] > 0.02) | (radius < threshold)
+        in_place = 0.1 * lifted + 0.9 * tolerance(jnp.linalg.norm(error * scale), 0.02, 0.4)
+        grab = self._grab(obs, view, episode, action)
+        reward = (2.0 * grab + 6.0 * in_place) * _laid_down(obs)
+        return jnp.where(success, 10.0, reward)
+
 
 class Disassemble(_Nut):
     name = "disassemble-v3"
@@ -74,6 +126,7 @@ class Disassemble(_Nut):
     reset_high = (0.1, 0.75, 0.02501, 0.1, 0.75, 0.1701)
     goal_low = (-0.1, 0.6, 0.1749)
     goal_high = (0.1, 0.75, 0.1751)
+    density = "high"
 
     def place(
         self, facts: ModelFacts, vec: jax.Array, qpos: jax.Array, qvel: jax.Array
@@ -86,6 +139,18 @@ class Disassemble(_Nut):
 
     def success(self, obs: jax.Array, view: View, episode: Mapping[str, Any]) -> jax.Array:
         return obs[6] > episode["target_pos"][2]
+
+    def reward(
+        self, obs: jax.Array, view: View, episode: Mapping[str, Any], action: jax.Array
+    ) -> jax.Array:
+        """MetaWorld's v2: (2 x the handle caged, 6 x the nut lifted (0.1) and brought to
+        0.1 over the goal (0.9)) x the nut lying flat; 10 on success."""
+        centre = view.site_pos("RoundNut")
+        error = episode["target_pos"] + jnp.asarray([0.0, 0.0, 0.1], jnp.float32) - centre
+        in_place = 0.1 * (centre[2] > 0.02) + 0.9 * tolerance(jnp.linalg.norm(error), 0.02, 0.2)
+        grab = self._grab(obs, view, episode, action)
+        reward = (2.0 * grab + 6.0 * in_place) * _laid_down(obs)
+        return jnp.where(self.success(obs, view, episode), 10.0, reward)
 
 
 TASKS = (Assembly(), Disassemble())

@@ -126,9 +126,10 @@ class PegUnplugSide(MirrorTask):
     reset_high = (-0.15, 0.8, 0.001)
     goal_low = (-0.25 + 0.194, 0.6, -0.001 + 0.131)
     goal_high = (-0.15 + 0.194, 0.8, 0.001 + 0.131)
-    bodies = ("plug1",)
+    bodies = ("plug1", "leftpad", "rightpad")
     sites = ("pegEnd",)
     moved_bodies = ("box",)
+    has_reward = True
     # MetaWorld's final hand reset runs with the box already moved and the plug at its model
     # default, inside the moved box: the plug is knocked about, and `_set_obj_xyz` keeps the
     # angular velocity it leaves (qvel[12:15]), so that velocity depends on the episode
@@ -155,6 +156,20 @@ class PegUnplugSide(MirrorTask):
 
     def success(self, obs: jax.Array, view: View, episode: Mapping[str, Any]) -> jax.Array:
         return jnp.linalg.norm(obs[4:7] - episode["target_pos"]) <= 0.07
+
+    def reward(
+        self, obs: jax.Array, view: View, episode: Mapping[str, Any], action: jax.Array
+    ) -> jax.Array:
+        """MetaWorld's v2: 2 x the plug caged and gripped (effort 0.8); 1 + 2 x that + 5 x
+        its approach to the goal once pulled 1.5 cm in an open grip; 10 within 0.05."""
+        obj, target, start = obs[4:7], episode["target_pos"], episode["obj_init_pos"]
+        grasped = gripper_caging(view, episode, action, obj, 0.025, 0.05, 0.005, effort=0.8)
+        to_target = jnp.linalg.norm(obj - target)
+        in_place = tolerance(to_target, 0.05, jnp.linalg.norm(start - target))
+        pulled = (obs[3] > 0.5) & (obj[0] - start[0] > 0.015)
+        pulled = pulled & (jnp.linalg.norm(obj - view.tcp_center) < 0.035)
+        reward = jnp.where(pulled, 1.0 + 2.0 * grasped + 5.0 * in_place, 2.0 * grasped)
+        return jnp.where(to_target <= 0.05, 10.0, reward)
 
 
 TASKS = (PegInsertSide(), PegUnplugSide())

@@ -9,14 +9,21 @@ within 0.07 of the goal.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from typing import Any
+
 import jax
+import jax.numpy as jnp
 
 from openral_mjx.benchmarks.metaworld.mirror.task import (
     FreeObjectTask,
     ModelFacts,
     View,
     at_rest_height,
+    hamacher_product,
     matrix_quat,
+    pushing_caging,
+    tolerance,
 )
 
 
@@ -28,8 +35,10 @@ class PushBack(FreeObjectTask):
     reset_high = (0.1, 0.85, 0.02, 0.1, 0.7, 0.0201)
     goal_low = (-0.1, 0.6, 0.0199)
     goal_high = (0.1, 0.7, 0.0201)
+    bodies = ("leftpad", "rightpad")
     geoms = ("objGeom",)
     success_radius = 0.07
+    has_reward = True
 
     def obj_init(self, facts: ModelFacts, vec: jax.Array) -> jax.Array:
         return at_rest_height(facts, vec[:2], "geom:objGeom", vec.dtype)
@@ -39,6 +48,23 @@ class PushBack(FreeObjectTask):
 
     def objects(self, view: View) -> tuple[jax.Array, jax.Array]:
         return view.geom_pos("objGeom"), matrix_quat(view.geom_quat("objGeom"))
+
+    def reward(
+        self, obs: jax.Array, view: View, episode: Mapping[str, Any], action: jax.Array
+    ) -> jax.Array:
+        """MetaWorld's v2: the puck caged (its own caging) times its approach to the goal,
+        plus 1 and 5x that approach while the tcp touches it in a half-closed grip having
+        moved it 1 cm closer; 10 within 0.05."""
+        obj, target = obs[4:7], episode["target_pos"]
+        to_target = jnp.linalg.norm(obj - target)
+        init = jnp.linalg.norm(episode["obj_init_pos"] - target)
+        in_place = tolerance(to_target, 0.05, init)
+        caged = pushing_caging(view, episode, obj, 0.007, 0.003, 0.01)
+        reward = hamacher_product(caged, in_place)
+        touching = (jnp.linalg.norm(obj - view.tcp_center) < 0.01) & (obs[3] > 0) & (obs[3] < 0.55)
+        touching = touching & (init - to_target > 0.01)
+        reward = jnp.where(touching, reward + 1.0 + 5.0 * in_place, reward)
+        return jnp.where(to_target < 0.05, 10.0, reward)
 
 
 TASKS = (PushBack(),)

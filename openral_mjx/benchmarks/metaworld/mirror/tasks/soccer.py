@@ -9,6 +9,9 @@ goal (the reward weights x by 3; the success test does not).
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from typing import Any
+
 import jax
 import jax.numpy as jnp
 
@@ -17,6 +20,8 @@ from openral_mjx.benchmarks.metaworld.mirror.task import (
     ModelFacts,
     View,
     matrix_quat,
+    pushing_caging,
+    tolerance,
 )
 
 FREE_QPOS, FREE_DOF = 9, 9  # MetaWorld's `_set_obj_xyz` writes qpos[9:12], qvel[9:15]
@@ -31,7 +36,8 @@ class Soccer(FreeObjectTask):
     reset_high = (0.1, 0.7, 0.03, 0.1, 0.9, 0.0)
     goal_low = (-0.1, 0.8, 0.0)
     goal_high = (0.1, 0.9, 0.0)
-    bodies = ("soccer_ball",)
+    bodies = ("soccer_ball", "leftpad", "rightpad")
+    has_reward = True
     moved_bodies = ("goal_whole",)
     # `compute_reward` scales x by 3 for its reward but returns the plain distance
     success_radius = 0.07
@@ -48,6 +54,24 @@ class Soccer(FreeObjectTask):
 
     def objects(self, view: View) -> tuple[jax.Array, jax.Array]:
         return view.body_pos("soccer_ball"), matrix_quat(view.body_quat("soccer_ball"))
+
+    def reward(
+        self, obs: jax.Array, view: View, episode: Mapping[str, Any], action: jax.Array
+    ) -> jax.Array:
+        """MetaWorld's v2: 3 x the ball caged (its own caging), 6.5 x its approach to the goal
+        (x weighted 3; the margin is the ball's current distance from its start), cut back
+        when the ball passes the goal line wide of the net; 10 within 0.07."""
+        obj, target = obs[4:7], episode["target_pos"]
+        scale = jnp.asarray([3.0, 1.0, 1.0], jnp.float32)
+        to_target = jnp.linalg.norm((obj - target) * scale)
+        moved = jnp.linalg.norm((obj - episode["obj_init_pos"]) * scale)
+        in_place = tolerance(to_target, 0.07, moved)
+        line = target[1] - 0.1
+        wide = (obj[1] > line) & (jnp.abs(obj[0] - target[0]) > 0.1)
+        cut = jnp.clip(in_place - 2.0 * (obj[1] - line) / (1.0 - line), 0.0, 1.0)
+        in_place = jnp.where(wide, cut, in_place)
+        caged = pushing_caging(view, episode, obj, 0.013, 0.01, 0.005)
+        return jnp.where(to_target < 0.07, 10.0, 3.0 * caged + 6.5 * in_place)
 
 
 TASKS = (Soccer(),)

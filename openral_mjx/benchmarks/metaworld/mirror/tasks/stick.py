@@ -23,7 +23,15 @@ from typing import Any, ClassVar
 import jax
 import jax.numpy as jnp
 
-from openral_mjx.benchmarks.metaworld.mirror.task import MirrorTask, ModelFacts, View, matrix_quat
+from openral_mjx.benchmarks.metaworld.mirror.task import (
+    MirrorTask,
+    ModelFacts,
+    View,
+    gripper_caging,
+    hamacher_product,
+    matrix_quat,
+    tolerance,
+)
 
 STICK_QPOS, STICK_DOF = 9, 9  # `_set_stick_xyz`: qpos[9:12], qvel[9:15]
 SLIDES_QPOS = 16  # `_set_obj_xyz`: qpos[16:18], qvel[16:18]
@@ -33,8 +41,9 @@ STICK_Z = 0.02  # init_config["stick_init_pos"][-1]
 class _Stick(MirrorTask):
     xml = "sawyer_xyz/sawyer_stick_obj.xml"
     hand_init_pos = (0.0, 0.6, 0.2)
-    bodies = ("stick", "object")
+    bodies = ("stick", "object", "leftpad", "rightpad")
     sites = ("insertion", "stick_end")
+    has_reward = True
     slides: ClassVar[tuple[float, float]]
     insertion_offset: ClassVar[tuple[float, float, float]] = (0.0, 0.0, 0.0)
 
@@ -95,6 +104,30 @@ class StickPush(_Stick):
         grasped = (obs[3] > 0) & (obs[6] - 0.01 > episode["stick_init_pos"][2])
         return near & grasped
 
+    def reward(
+        self, obs: jax.Array, view: View, episode: Mapping[str, Any], action: jax.Array
+    ) -> jax.Array:
+        """MetaWorld's v2: the stick caged and gripped; once held lifted in an open grip,
+        2 + 5 x the stick's approach to the goal + 3 x the container's, 10 with the
+        container within 0.12 (the margins less that radius)."""
+        radius = 0.12
+        stick = obs[4:7] + jnp.asarray([0.015, 0.0, 0.0], jnp.float32)
+        container, target = obs[11:14], episode["target_pos"]
+        stick_margin = jnp.linalg.norm(episode["stick_init_pos"] - target) - radius
+        stick_in_place = tolerance(jnp.linalg.norm(stick - target), radius, stick_margin)
+        to_target = jnp.linalg.norm(container - target)
+        box_margin = jnp.linalg.norm(episode["obj_init_pos"] - target) - radius
+        box_in_place = tolerance(to_target, radius, box_margin)
+        # stick-push's own caging reward measures from the stick's start, not the box's
+        from_stick = {**episode, "obj_init_pos": episode["stick_init_pos"]}
+        grasped = gripper_caging(view, from_stick, action, stick, 0.04, 0.05, 0.01)
+        held = (jnp.linalg.norm(stick - view.tcp_center) < 0.02) & (obs[3] > 0)
+        held = held & (stick[2] - 0.01 > episode["stick_init_pos"][2])
+        pushing = jnp.where(
+            to_target <= radius, 10.0, 2.0 + 5.0 * stick_in_place + 3.0 * box_in_place
+        )
+        return jnp.where(held, pushing, grasped)
+
 
 class StickPull(_Stick):
     name = "stick-pull-v3"
@@ -117,6 +150,50 @@ class StickPull(_Stick):
             & (jnp.abs(end[2] - handle[2]) <= 0.060)
         )
         return (jnp.linalg.norm(handle - episode["target_pos"]) <= 0.12) & inserted
+
+    def reward(
+        self, obs: jax.Array, view: View, episode: Mapping[str, Any], action: jax.Array
+    ) -> jax.Array:
+        """MetaWorld's v2: (the stick caged and gripped, or 1 once held lifted in an open
+        grip) times its approach to the container (z weighted 2); once held, plus 1 and 5x
+        that approach, or with the stick in the handle 6 + 2 x the stick's approach to the
+        goal + the container's; 10 there with the handle within 0.12 of the goal."""
+        radius = 0.05
+        stick, handle, target = obs[4:7], obs[11:14], episode["target_pos"]
+        ahead = jnp.asarray([0.05, 0.0, 0.0], jnp.float32)
+        container, container_init = handle + ahead, episode["obj_init_pos"] + ahead
+        stick_init = episode["stick_init_pos"]
+        scale = jnp.asarray([1.0, 1.0, 2.0], jnp.float32)
+        stick_in_place = tolerance(
+            jnp.linalg.norm((stick - container) * scale),
+            radius,
+            jnp.linalg.norm((stick_init - container_init) * scale),
+        )
+        stick_at_goal = tolerance(
+            jnp.linalg.norm(stick - target), radius, jnp.linalg.norm(stick_init - target)
+        )
+        box_in_place = tolerance(
+            jnp.linalg.norm(container - target),
+            radius,
+            jnp.linalg.norm(episode["obj_init_pos"] - target),
+        )
+        grasped = gripper_caging(view, episode, action, stick, 0.014, 0.05, 0.01)
+        held = (jnp.linalg.norm(stick - view.tcp_center) < 0.02) & (obs[3] > 0)
+        held = held & (stick[2] - 0.01 > stick_init[2])
+        both = hamacher_product(jnp.where(held, 1.0, grasped), stick_in_place)
+        end = view.site_pos("stick_end")
+        inserted = (
+            (end[0] >= handle[0])
+            & (jnp.abs(end[1] - handle[1]) <= 0.040)
+            & (jnp.abs(end[2] - handle[2]) <= 0.060)
+        )
+        pulling = jnp.where(
+            jnp.linalg.norm(handle - target) <= 0.12,
+            10.0,
+            6.0 + both + 2.0 * stick_at_goal + box_in_place,
+        )
+        held_reward = jnp.where(inserted, pulling, 1.0 + both + 5.0 * stick_in_place)
+        return jnp.where(held, held_reward, both)
 
 
 TASKS = (StickPush(), StickPull())

@@ -18,12 +18,37 @@ from typing import Any
 import jax
 import jax.numpy as jnp
 
-from openral_mjx.benchmarks.metaworld.mirror.task import MirrorTask, ModelFacts, View, matrix_quat
+from openral_mjx.benchmarks.metaworld.mirror.task import (
+    MirrorTask,
+    ModelFacts,
+    View,
+    hamacher_product,
+    matrix_quat,
+    pushing_caging,
+    tolerance,
+)
 
 FREE_QPOS, FREE_DOF = 9, 9  # MetaWorld's `_set_obj_xyz` writes qpos[9:12], qvel[9:15]
 SWEEP_GOAL = (0.5, 0.65, 0.01)
 SWEEP_PUCK_Z = 0.02  # init_config["obj_init_pos"][-1]
 SWEEP_INTO_GOAL = (0.0, 0.84, 0.02)
+
+
+def _swept(
+    view: View,
+    episode: Mapping[str, Any],
+    obj: jax.Array,
+    target: jax.Array,
+    grip_margin: float,
+    xz_thresh: float,
+) -> jax.Array:
+    """MetaWorld's v2 for both: 2 x the puck caged (its own caging, radius 0.02) + 6 x that
+    times the puck's approach to `target`; 10 within 0.05."""
+    to_target = jnp.linalg.norm(obj - target)
+    in_place = tolerance(to_target, 0.05, jnp.linalg.norm(episode["obj_init_pos"] - target))
+    caged = pushing_caging(view, episode, obj, 0.02, grip_margin, xz_thresh)
+    reward = 2.0 * caged + 6.0 * hamacher_product(caged, in_place)
+    return jnp.where(to_target < 0.05, 10.0, reward)
 
 
 def _set_free(qpos: jax.Array, qvel: jax.Array, pos: jax.Array) -> tuple[jax.Array, jax.Array]:
@@ -38,7 +63,8 @@ class Sweep(MirrorTask):
     reset_high = (0.1, 0.7, 0.02)
     goal_low = (0.49, 0.6, 0.0)
     goal_high = (0.51, 0.7, 0.02)
-    bodies = ("obj",)
+    bodies = ("obj", "leftpad", "rightpad")
+    has_reward = True
 
     def _obj_init(self, vec: jax.Array) -> jax.Array:
         return jnp.concatenate([vec[:2], jnp.full((1,), SWEEP_PUCK_Z, vec.dtype)])
@@ -59,6 +85,12 @@ class Sweep(MirrorTask):
     def success(self, obs: jax.Array, view: View, episode: Mapping[str, Any]) -> jax.Array:
         return jnp.linalg.norm(obs[4:7] - episode["target_pos"]) <= 0.05
 
+    def reward(
+        self, obs: jax.Array, view: View, episode: Mapping[str, Any], action: jax.Array
+    ) -> jax.Array:
+        """See `_swept`: the goal as drawn."""
+        return _swept(view, episode, obs[4:7], episode["target_pos"], 0.01, 0.005)
+
 
 class SweepInto(MirrorTask):
     name = "sweep-into-v3"
@@ -68,8 +100,9 @@ class SweepInto(MirrorTask):
     reset_high = (0.1, 0.7, 0.02, 0.001, 0.8401, 0.0201)
     goal_low = (-0.001, 0.8399, 0.0199)
     goal_high = (0.001, 0.8401, 0.0201)
-    bodies = ("obj",)
+    bodies = ("obj", "leftpad", "rightpad")
     geoms = ("objGeom",)
+    has_reward = True
 
     def accept(self, vec: jax.Array) -> jax.Array:
         return jnp.linalg.norm(vec[:2] - jnp.asarray(SWEEP_INTO_GOAL[:2])) >= 0.15
@@ -96,6 +129,14 @@ class SweepInto(MirrorTask):
         obj = obs[4:7]
         target = episode["target_pos"]
         return jnp.linalg.norm(obj[:2] - target[:2]) <= 0.05
+
+    def reward(
+        self, obs: jax.Array, view: View, episode: Mapping[str, Any], action: jax.Array
+    ) -> jax.Array:
+        """See `_swept`: the goal at the puck's height."""
+        obj = obs[4:7]
+        target = episode["target_pos"].at[2].set(obj[2])
+        return _swept(view, episode, obj, target, 0.005, 0.01)
 
 
 TASKS = (Sweep(), SweepInto())

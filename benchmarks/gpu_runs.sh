@@ -231,6 +231,35 @@ json.dump(d, open(sys.argv[2], 'w'), indent=1)" "/tmp/libero_suite_$s.json" \
         "$out/libero_suite_${s}_k${TASK_PROCS:-10}.json"
     done
     mps_stop ;;
+  libero-cams)  # issue 42: LIBERO's two cameras on warp (MuJoCo-Warp's renderer, IMAGE px)
+                # against the same run without them: TASK at NS envs, STEPS control steps,
+                # random policy, fixed chunks (every episode runs to STEPS)
+    for n in ${NS:-1024}; do
+      common=(--scene libero_mjx --task "${TASK:-libero_object/0}" --backend warp --n-envs "$n"
+              --policy random --max-steps "${STEPS:-100}" --batching chunks)
+      ev "libero_cams_none_$n" "${common[@]}"
+      ev "libero_cams_${IMAGE:-128}px_$n" "${common[@]}" --opt "image_size=${IMAGE:-128}"
+    done ;;
+  libero-act)  # issue 42: a random-weight ACT at lerobot's default size (two IMAGE px cameras,
+               # benchmarks/libero_act_policy.py) in process on the GPU, each of SUITES x 50
+               # initial states through eval --suite (TASK_PROCS at once, MPS=1 under MPS), or
+               # TASK alone when SUITES is unset
+    [ -d /tmp/act_libero ] || python3 benchmarks/libero_act_policy.py --out /tmp/act_libero \
+      --size "${IMAGE:-128}" | tail -1
+    if [ -z "${SUITES:-}" ]; then
+      ev "libero_act_$(echo "${TASK:-libero_object/0}" | tr / _)" --scene libero_mjx \
+        --task "${TASK:-libero_object/0}" --backend warp --n-envs 50 --policy lerobot:/tmp/act_libero
+    else
+      mps_start || exit 1
+      for s in $SUITES; do
+        { time python3 -m openral_mjx.eval --scene libero_mjx --suite "$s" --backend warp \
+          --n-envs 50 --policy lerobot:/tmp/act_libero --task-processes "${TASK_PROCS:-10}" \
+          --out "/tmp/libero_act_$s.json" --no-breakdown; } 2>&1 | grep -v "^  " | tail -4
+        python3 -c "import json,sys; d=json.load(open(sys.argv[1])); d['episodes']=len(d['episodes'])
+json.dump(d, open(sys.argv[2], 'w'), indent=1)" "/tmp/libero_act_$s.json" "$out/libero_act_suite_$s.json"
+      done
+      mps_stop
+    fi ;;
   cluster-scaling)  # issue 39: SUITE (mt10) over Ray vs --task-processes on this machine's GPUs,
                     # then HOST_SCENE (libero) over Ray actors vs local workers up to its cores.
                     # Needs the ray extra (its wheels carried: the machine has no network) and,

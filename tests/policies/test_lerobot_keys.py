@@ -244,3 +244,25 @@ def test_cameras_a_scene_cannot_serve_are_one_line_errors(tmp_path):
     )
     with pytest.raises(ConfigError, match="a policy whose images are square"):
         check_cameras(none, "wide", wide, flat)
+
+
+def test_a_suite_takes_the_policys_image_size_too(tmp_path, monkeypatch):
+    """`eval --suite` builds each task with the options a lerobot policy implies, as a single
+    task does (a LIBERO policy's suite on the mirror ran without cameras before: one-line
+    error "renders none without option image_size"); a given option still wins."""
+    from openral_mjx.evaluation import RunSpec
+    from openral_mjx.evaluation import suite as suite_module
+
+    seen = []
+
+    def build(scene, options, spec):
+        seen.append(dict(options))
+        raise ConfigError("stop here")
+
+    monkeypatch.setattr(suite_module, "build_spec_scene", build)
+    policy = _config(tmp_path / "act", LIBERO_FEATURES)
+    spec = RunSpec(backend="c", n_envs=2, max_steps=2)
+    for given, side in ((None, 32), ({"image_size": 64}, 64)):
+        with pytest.raises(ConfigError, match="stop here"):
+            suite_module.evaluate_suite("libero_mjx", "libero_object", policy, spec, options=given)
+        assert seen[-1] == {"image_size": side, "task": "libero_object/0"}, seen[-1]

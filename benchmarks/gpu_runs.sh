@@ -253,7 +253,8 @@ json.dump(d, open(sys.argv[2], 'w'), indent=1)" "/tmp/libero_suite_$s.json" \
       mps_start || exit 1
       for s in $SUITES; do
         { time python3 -m openral_mjx.eval --scene libero_mjx --suite "$s" --backend warp \
-          --n-envs 50 --policy lerobot:/tmp/act_libero --task-processes "${TASK_PROCS:-10}" \
+          --n-envs 50 --policy lerobot:/tmp/act_libero --opt "image_size=${IMAGE:-128}" \
+          --task-processes "${TASK_PROCS:-10}" \
           --out "/tmp/libero_act_$s.json" --no-breakdown; } 2>&1 | grep -v "^  " | tail -4
         python3 -c "import json,sys; d=json.load(open(sys.argv[1])); d['episodes']=len(d['episodes'])
 json.dump(d, open(sys.argv[2], 'w'), indent=1)" "/tmp/libero_act_$s.json" "$out/libero_act_suite_$s.json"

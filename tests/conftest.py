@@ -11,16 +11,6 @@ import pytest
 from openral_mjx.physics import PhysicsSettings
 from openral_mjx.scenes import So101Box, TabletopPush
 
-# XLA's CPU backend with LLVM's optimisation off, set before JAX starts its backend (importing
-# it does not) and inherited by the commands tests start: the tests' programs are compiled once
-# and run for seconds, so compiling is most of their cost. Measured on 2 cores with a cold
-# cache: an MJX test 36 s -> 20 s, three mixed tests 41 s -> 30 s. Results are the same
-# programs' (checked against the same references and tolerances); only benchmarks measure
-# speed, with XLA's defaults.
-_O0 = "--xla_backend_optimization_level=0"
-if _O0 not in os.environ.get("XLA_FLAGS", ""):
-    os.environ["XLA_FLAGS"] = f"{os.environ.get('XLA_FLAGS', '')} {_O0}".strip()
-
 # Reuse XLA compilations across test runs on this machine (CI starts cold either way).
 jax.config.update("jax_compilation_cache_dir", str(Path(__file__).parent.parent / ".jax_cache"))
 jax.config.update("jax_persistent_cache_min_compile_time_secs", 1.0)

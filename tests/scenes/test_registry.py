@@ -3,8 +3,8 @@
 
 A scene is smoke-tested here the day it is registered. Tiers (see README, Tests): MuJoCo
 scenes on `c` run in the default tier; `mjx` and `warp` (a compile of minutes on a CPU) in
-`heavy`; scenes that need a worker environment in `worker`; the one case that compiles for
-minutes even there (SLOW_CASES) in `slow`.
+`heavy`; scenes that need a worker environment in `worker`; the cases that cost a minute or
+more and are covered elsewhere (SLOW_CASES) in `slow`.
 """
 
 from __future__ import annotations
@@ -28,8 +28,11 @@ SETTINGS = {"c": {"threads": 2}, "warp": {"batch_size": 8}}
 # Cases in `slow` (run by hand or on a GPU machine): MJX compiles the MetaWorld mirror's mesh
 # collisions for ~2.5 minutes on 2 cores, the largest single test of CI's heavy tier. Its MJX
 # model is still built and checked in the heavy tier (tests/benchmarks/metaworld), and
-# `gpu_runs.sh mw-mjx-check` steps all 50 tasks on MJX on a GPU.
-SLOW_CASES = {("metaworld_mjx", "mjx")}
+# `gpu_runs.sh mw-mjx-check` steps all 50 tasks on MJX on a GPU. LIBERO's host scene starts
+# its robosuite workers for ~45 s; the worker tier builds and steps it twice already
+# (tests/host/test_worker_env_scenes.py: the acceptance command, and its batch against the env
+# stepped directly).
+SLOW_CASES = {("metaworld_mjx", "mjx"), ("libero", "host")}
 
 
 def _cases() -> list:

@@ -255,6 +255,16 @@ def hamacher_product(a: jax.Array, b: jax.Array) -> jax.Array:
     return jnp.where(den > 0, a * b / jnp.where(den > 0, den, 1.0), 0.0)
 
 
+def _tcp_over(
+    view: View, episode: Mapping[str, Any], obj: jax.Array, xz_thresh: float
+) -> jax.Array:
+    """The caging rewards' x-z part: the tcp within `xz_thresh` of `obj` in x-z, its margin
+    the distance from the hand reset's end (``init_tcp``) to the object's start."""
+    xz = jnp.asarray([0, 2])
+    xz_margin = jnp.linalg.norm(episode["obj_init_pos"][xz] - episode["init_tcp"][xz]) - xz_thresh
+    return tolerance(jnp.linalg.norm(view.tcp_center[xz] - obj[xz]), xz_thresh, xz_margin)
+
+
 def gripper_caging(
     view: View,
     episode: Mapping[str, Any],
@@ -279,10 +289,9 @@ def gripper_caging(
         tolerance(jnp.abs(pads_y[i] - obj[1]), pad_success_thresh, margins[i], lower=obj_radius)
         for i in range(2)
     ]
-    xz = jnp.asarray([0, 2])
-    xz_margin = jnp.linalg.norm(start[xz] - episode["init_tcp"][xz]) - xz_thresh
-    caging_xz = tolerance(jnp.linalg.norm(view.tcp_center[xz] - obj[xz]), xz_thresh, xz_margin)
-    caging = hamacher_product(hamacher_product(lr[0], lr[1]), caging_xz)
+    caging = hamacher_product(
+        hamacher_product(lr[0], lr[1]), _tcp_over(view, episode, obj, xz_thresh)
+    )
     closed = jnp.clip(action[-1], 0.0, effort) / effort
     gripping = jnp.where(caging > 0.97, closed, 0.0)
     held = hamacher_product(caging, gripping)
@@ -330,11 +339,9 @@ def pushing_caging(
         tolerance(d, obj_radius + grip_margin, m, lower=obj_radius)
         for d, m in zip(deltas, margins, strict=True)
     ]
-    xz = jnp.asarray([0, 2])
-    start = episode["obj_init_pos"]
-    xz_margin = jnp.linalg.norm(start[xz] - episode["init_tcp"][xz]) - xz_thresh
-    caging_xz = tolerance(jnp.linalg.norm(view.tcp_center[xz] - obj[xz]), xz_thresh, xz_margin)
-    caged = hamacher_product(hamacher_product(caging[0], caging[1]), caging_xz)
+    caged = hamacher_product(
+        hamacher_product(caging[0], caging[1]), _tcp_over(view, episode, obj, xz_thresh)
+    )
     gripping = jnp.where(caged > 0.95, hamacher_product(grip[0], grip[1]), 0.0)
     return (caged + gripping) / 2.0
 

@@ -32,7 +32,7 @@ from openral_mjx.evaluation import Evaluation, RunSpec, cluster
 from openral_mjx.evaluation.frames import check_frames, record_frames, save_frames
 from openral_mjx.evaluation.partial import Interrupted
 from openral_mjx.evaluation.replay import EpisodeTrace, choose_seeds, trace_episodes
-from openral_mjx.evaluation.run import build_spec_scene, evaluate_spec
+from openral_mjx.evaluation.run import build_spec_scene, evaluate_spec, policy_options
 from openral_mjx.evaluation.sequential import PairedRule, paired_rule
 from openral_mjx.evaluation.suite import evaluate_suite, format_tasks, mps_running
 from openral_mjx.evaluation.sweep import SweepCluster, parse_sweep, run_sweep
@@ -40,7 +40,6 @@ from openral_mjx.physics import BACKEND_NAMES
 from openral_mjx.physics.gl import GLUnavailable, camera_id, gl_backend
 from openral_mjx.physics.mj_warnings import count_warnings, format_warnings
 from openral_mjx.policies import POLICIES
-from openral_mjx.policies.lerobot import implied_camera_options
 from openral_mjx.report import EvalReport, load_report, save_report
 from openral_mjx.report.sweep import SweepReport, load_sweep, save_sweep
 from openral_mjx.robots import ROBOTS
@@ -605,13 +604,12 @@ def build(plan: EvalPlan, owned: contextlib.ExitStack) -> Built:
         enable_compilation_cache()
     if args.suite is not None:
         return Built()
-    # a lerobot policy's cameras, unless --opt names them (run_evaluation does the same)
-    implied = implied_camera_options(args.policy, SCENES.get(args.scene).options_cls, plan.options)
+    # a lerobot policy's cameras, unless --opt names them
+    options = policy_options(args.scene, args.policy, plan.options)
     # a host scene's env workers as Ray actors: connected first, so they end before Ray does
     # (a sweep's points connect in `run_sweep`)
     actors = args.cluster is not None and args.sweep is None
     ray = owned.enter_context(cluster.connected(args.cluster)) if actors else None
-    options = {**implied, **(plan.options or {})}
     scene = build_spec_scene(
         args.scene, options, plan.spec, randomize=args.randomize if args.sweep is None else ()
     )

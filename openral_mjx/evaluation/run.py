@@ -62,6 +62,14 @@ def build_scene(
     return randomization.randomize(scene, randomize)
 
 
+def policy_options(scene: str, policy: str, options: Mapping[str, Any] | None) -> dict[str, Any]:
+    """`options` with the camera options a `lerobot:PATH` policy implies for `scene` beneath
+    them (`implied_camera_options`: its image features set the cameras unless `options` do),
+    as every run that builds a scene by name for a policy by name takes them."""
+    implied = implied_camera_options(policy, SCENES.get(scene).options_cls, options)
+    return {**implied, **(options or {})}
+
+
 def build_spec_scene(
     name: str, options: Mapping[str, Any] | None, spec: RunSpec, randomize: Sequence[str] = ()
 ) -> Scene:
@@ -218,8 +226,7 @@ def evaluate_spec(
     with owned, count_warnings() as warned:  # on an error, close what this call built
         if isinstance(scene, str):
             if isinstance(policy, str):  # a lerobot policy's cameras, unless options name them
-                implied = implied_camera_options(policy, SCENES.get(scene).options_cls, options)
-                options = {**implied, **(options or {})}
+                options = policy_options(scene, policy, options)
             scene = build_spec_scene(scene, options, spec)
             owned.callback(scene.close)
         scene = randomization.randomize(scene, randomize)

@@ -36,13 +36,12 @@ from openral_mjx.core.interrupts import stop_signal
 from openral_mjx.evaluation import cluster
 from openral_mjx.evaluation.cluster import RayRun
 from openral_mjx.evaluation.partial import Interrupted, add_warnings, partial_info
-from openral_mjx.evaluation.run import build_spec_scene, evaluate_spec
+from openral_mjx.evaluation.run import build_spec_scene, evaluate_spec, policy_options
 from openral_mjx.evaluation.spec import RunSpec
 from openral_mjx.policies import Policy, make_policy
-from openral_mjx.policies.lerobot import implied_camera_options
 from openral_mjx.report import EvalReport, PartialInfo, PartPlacement
 from openral_mjx.runner.compile_cache import enable_compilation_cache
-from openral_mjx.scenes import SCENES, scene_suite
+from openral_mjx.scenes import scene_suite
 from openral_mjx.stats import wilson_interval
 
 MPS_PIPE_DEFAULT = "/tmp/nvidia-mps"
@@ -94,8 +93,7 @@ def evaluate_suite(
         raise ConfigError("--cluster runs a suite's tasks on Ray workers: drop --task-processes")
     tasks = scene_suite(scene, suite)
     # a lerobot policy's cameras, unless options name them (as `evaluate_spec` does for a task)
-    implied = implied_camera_options(policy, SCENES.get(scene).options_cls, options)
-    options = {**implied, **(options or {})}
+    options = policy_options(scene, policy, options)
     earlier = _resumed(resume, suite, tasks)
     todo = tasks[len(earlier.partial.finished) if earlier and earlier.partial else 0 :]
     reports: list[EvalReport] = []

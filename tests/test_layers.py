@@ -13,6 +13,8 @@ from __future__ import annotations
 
 import ast
 import re
+import subprocess
+import sys
 from pathlib import Path
 
 import openral_mjx
@@ -133,3 +135,19 @@ def test_imports_point_down():
             if here == BENCHMARKS or (there != here and rank[there] <= rank[here]):
                 upward.append(f"{module} imports {target} ({here} -> {there})")
     assert upward == []
+
+
+def test_the_clis_start_without_mjx():
+    """`eval`, `compare` and `plan` import MJX and MuJoCo-Warp only for a run on `mjx` or `warp`:
+    importing them defines Warp's kernels (~7 s on 2 cores), which a run on `c`, a host scene,
+    a report or `--help` never needs (and every process a suite or a cluster starts pays)."""
+    code = (
+        "import sys, openral_mjx.eval, openral_mjx.compare, openral_mjx.plan; "
+        "print(sorted({m.split('.')[1] for m in sys.modules if m.startswith('mujoco.')}))"
+    )
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert "mjx" not in proc.stdout, proc.stdout
+    # and the lazy names still resolve
+    from openral_mjx import physics
+
+    assert physics.MjxBackend.name == "mjx" and physics.WarpBackend.name == "warp"

@@ -1,8 +1,15 @@
-"""Physics backends: how a batch of states advances (`mjx`, `warp` on JAX devices, `c` on CPU)."""
+"""Physics backends: how a batch of states advances (`mjx`, `warp` on JAX devices, `c` on CPU).
+
+`MjxBackend` and `WarpBackend` are imported when first used: importing `mujoco.mjx` pulls in
+MuJoCo-Warp and defines its kernels (~7 s on a 2-core machine), which a run on `c`, a host
+scene, a report or `--help` never needs.
+"""
 
 from __future__ import annotations
 
+import importlib
 from collections.abc import Callable
+from typing import TYPE_CHECKING, Any
 
 import jax
 import mujoco
@@ -14,10 +21,23 @@ from openral_mjx.physics.base import (
     PhysicsState,
     Quantities,
     QuantitySpec,
+    warp_installed,
 )
 from openral_mjx.physics.c_backend import CBackend
-from openral_mjx.physics.mjx_backend import MjxBackend
-from openral_mjx.physics.warp_backend import WarpBackend, warp_installed
+
+if TYPE_CHECKING:
+    from openral_mjx.physics.mjx_backend import MjxBackend
+    from openral_mjx.physics.warp_backend import WarpBackend
+
+_LAZY = {"MjxBackend": "mjx_backend", "WarpBackend": "warp_backend"}
+
+
+def __getattr__(name: str) -> Any:
+    """`MjxBackend` and `WarpBackend`, imported on first use (see the module docstring)."""
+    if name in _LAZY:
+        return getattr(importlib.import_module(f"{__name__}.{_LAZY[name]}"), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
 
 BACKEND_NAMES = ("auto", "mjx", "warp", "c")
 
@@ -48,12 +68,12 @@ def make_backend(
 ) -> PhysicsBackend:
     """Build the named backend (after resolving `auto`) for a composed scene spec."""
     resolved = resolve_backend_name(name)
-    factories: dict[str, Callable[[], PhysicsBackend]] = {
-        "mjx": lambda: MjxBackend(spec, quantities, n_substeps, settings),
-        "warp": lambda: WarpBackend(spec, quantities, n_substeps, settings),
-        "c": lambda: CBackend(spec, quantities, n_substeps, settings),
+    factories: dict[str, Callable[[], type[PhysicsBackend]]] = {
+        "mjx": lambda: __getattr__("MjxBackend"),
+        "warp": lambda: __getattr__("WarpBackend"),
+        "c": lambda: CBackend,
     }
-    return factories[resolved]()
+    return factories[resolved]()(spec, quantities, n_substeps, settings)
 
 
 __all__ = [

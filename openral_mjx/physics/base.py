@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import abc
 import dataclasses
+import importlib.util
 from typing import Any, ClassVar
 
 import jax
@@ -20,6 +21,11 @@ from flax import struct
 from openral_mjx import raycast
 from openral_mjx.core.errors import ConfigError
 from openral_mjx.physics.cameras import RgbSpec, SensorSpec, sensor_key
+
+
+def warp_installed() -> bool:
+    """Whether warp-lang can be imported (without importing it)."""
+    return importlib.util.find_spec("warp") is not None
 
 
 @dataclasses.dataclass(frozen=True)

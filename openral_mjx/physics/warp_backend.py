@@ -11,8 +11,6 @@ same), so those two warnings are masked rather than printed every step.
 
 from __future__ import annotations
 
-import importlib.util
-
 import jax
 import jax.numpy as jnp
 import mujoco
@@ -20,18 +18,13 @@ import numpy as np
 
 from openral_mjx.core.errors import ConfigError
 from openral_mjx.core.rotations import quat_to_mat
-from openral_mjx.physics.base import Quantities, all_finite
+from openral_mjx.physics.base import Quantities, all_finite, warp_installed
 from openral_mjx.physics.cameras import SensorSpec, sensor_key
 from openral_mjx.physics.mjx_backend import MjxBackend, mjx
 from openral_mjx.physics.warp_render import WarpCameras, renderable
 from openral_mjx.raycast import LaserSpec
 
 INSTALL_HINT = "pip install 'openral_mjx[warp]' (warp-lang)"
-
-
-def warp_installed() -> bool:
-    """Whether warp-lang can be imported (without importing it)."""
-    return importlib.util.find_spec("warp") is not None
 
 
 class WarpBackend(MjxBackend):

@@ -105,22 +105,20 @@ def test_refill_on_warp_cpu_is_bit_identical_to_chunks(push_warp):
     CPU mode episodes do not depend on the batch, so outcomes match chunks bit for bit (which
     also shows the runner deterministic from run to run on warp)."""
     policy = make_policy("scripted", push_warp)
-    # Six seeds, two of which succeed within 60 steps: two chunks of 4 (Warp's CPU mode runs
-    # ~0.2 s an env-step on 2 cores, so every step saved counts).
-    seeds = np.arange(44, 50)
-    kw = dict(seeds=seeds, n_envs=4, max_steps=60)
+    # Six seeds, two of which succeed within 40 steps (33 and 35 on `c`): two chunks of 4 (Warp's
+    # CPU mode runs ~0.2 s an env-step on 2 cores, so every step saved counts).
+    seeds = np.arange(19, 25)
+    kw = dict(seeds=seeds, n_envs=4, max_steps=40)
     reference, timing = run_seeds(push_warp, policy, None, **kw)
     assert 0 < reference["success"].sum() < len(seeds)
     # the runner's bookkeeping on warp (freezing via `Data.where`, steps, first success)
     assert timing.n_devices == 1 and timing.n_envs == 4 and not reference["diverged"].any()
     done = reference["success"]
     np.testing.assert_array_equal(reference["steps"][done], reference["first_success_step"][done])
-    assert (reference["steps"][~done] == 60).all()
-    arrays, _ = run_seeds(push_warp, policy, None, **kw, batching="refill", refill_every=2)
-    for k in reference:
-        np.testing.assert_array_equal(arrays[k], reference[k], err_msg=k)
-    # Shrinking the drained batch (4 -> 2 slots) keeps the shared buffer as it is.
-    runner = RefillRunner(push_warp, policy, n_envs=4, max_steps=60, min_slots=1)
+    assert (reference["steps"][~done] == 40).all()
+    # Resets batched every 2 steps, and the drained batch shrinking (4 -> 2 slots) with the
+    # shared buffer kept as it is: one run covers both.
+    runner = RefillRunner(push_warp, policy, n_envs=4, max_steps=40, refill_every=2, min_slots=1)
     arrays, _ = runner.run(None, seeds)
     assert sorted(runner._advance) == [2, 4]
     for k in reference:

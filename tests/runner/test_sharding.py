@@ -50,7 +50,9 @@ def test_warp_on_four_devices_equals_one_device():
     assert any(result["success"])  # episodes long enough to differ if anything were off
 
 
-COMMON = ["--backend", "warp", "--n-envs", "8", "--max-steps", "60"]
+# Seeds 19..28: five of them succeed within 40 steps (at 33-38 on `c`), so a short episode
+# still tells the layouts apart if anything were off.
+COMMON = ["--backend", "warp", "--n-envs", "8", "--max-steps", "40", "--seed", "19"]
 TIMED = {"mean_step_latency_ms", "max_step_latency_ms", "budget_violations"}  # wall clock
 
 
@@ -61,7 +63,7 @@ def outcomes(report: dict) -> list[dict]:
 
 @pytest.fixture(scope="module")
 def one_device(tmp_path_factory: pytest.TempPathFactory) -> dict:
-    """The reference: seeds 0..9 on one device of one process, in fixed chunks."""
+    """The reference: seeds 19..28 on one device of one process, in fixed chunks."""
     out = tmp_path_factory.mktemp("one") / "one.json"
     one = ["--n-episodes", "10", "--devices", "1", "--batching", "chunks", "--out", out]
     proc = run_on_cpu_devices(2, "-m", "openral_mjx.eval", *COMMON, *one)

@@ -261,6 +261,22 @@ json.dump(d, open(sys.argv[2], 'w'), indent=1)" "/tmp/libero_act_$s.json" "$out/
       done
       mps_stop
     fi ;;
+  libero-startup)  # issue 42: a task process's start-up (build, trace, compile) with ACT in the
+                   # loop, TASK at 50 envs, run twice (the second finds JAX's compilation cache
+                   # warm; the two trees' programs differ, so neither finds the other's), for
+                   # this tree and, side by side, the package under BASE (an older checkout's
+                   # root, e.g. from `git archive`) when given
+    [ -d /tmp/act_libero ] || python3 benchmarks/libero_act_policy.py --out /tmp/act_libero \
+      --size "${IMAGE:-128}" | tail -1
+    t=${TASK:-libero_object/0}; out=$(realpath "$out"); here=$PWD
+    for root in ${BASE:-} "$here"; do
+      tag=$([ "$root" = "$here" ] && echo tree || echo base)
+      for run in cold warm; do  # from ROOT: `python -m` puts the working directory first
+        echo "== $tag $run"
+        (cd "$root" && PYTHONPATH=/tmp/site:$root ev "libero_startup_${tag}_$run" \
+          --scene libero_mjx --task "$t" --backend warp --n-envs 50 --policy lerobot:/tmp/act_libero)
+      done
+    done ;;
   cluster-scaling)  # issue 39: SUITE (mt10) over Ray vs --task-processes on this machine's GPUs,
                     # then HOST_SCENE (libero) over Ray actors vs local workers up to its cores.
                     # Needs the ray extra (its wheels carried: the machine has no network) and,

@@ -96,7 +96,7 @@ def control_step(
     action, new_pstate = jax.vmap(policy.act, in_axes=(None, 0, 0, 0))(
         params, pstate, state.obs, step_keys
     )
-    return jax.vmap(scene.step)(state, action), new_pstate, action
+    return jax.vmap(scene.traced.step)(state, action), new_pstate, action
 
 
 def accumulate(
@@ -147,7 +147,7 @@ def _episode_scan(
     before the step.
     """
     reset_keys, policy_keys = seed_keys(seeds)
-    state = jax.vmap(scene.reset_with_seed)(seeds, reset_keys)
+    state = jax.vmap(scene.traced.reset_with_seed)(seeds, reset_keys)
     pstate = policy_state0(policy, state.obs, seeds.shape[0])
     budget_ms = 1000.0 * scene.control_dt
 

@@ -36,14 +36,19 @@ def factor_stages(scene: Scene, devices: Sequence[jax.Device] | None = None) -> 
     if layout.devices not in cache:
 
         def reset(seeds: jax.Array) -> Any:
-            s = jax.vmap(scene.reset_with_seed)(seeds, seed_keys(seeds)[0])
+            s = jax.vmap(scene.traced.reset_with_seed)(seeds, seed_keys(seeds)[0])
             if s.physics is None:  # a host scene: its simulators' state lives in its workers
                 return s
             return s.replace(physics=s.physics.replace(data=None))
 
-        shape = jax.eval_shape(reset, jax.ShapeDtypeStruct((1,), jnp.int32))
+        # Whether the scene has factors, from one env's reset (its trace is the episode's,
+        # `Scene.traced`): most scenes have none, and then no batch of resets is traced.
+        seed, key = jax.ShapeDtypeStruct((), jnp.int32), jax.ShapeDtypeStruct((2,), jnp.uint32)
         stages = None
-        if jax.eval_shape(jax.vmap(scene.episode_factors), shape):
+        if jax.eval_shape(
+            scene.episode_factors, jax.eval_shape(scene.traced.reset_with_seed, seed, key)
+        ):
+            shape = jax.eval_shape(reset, jax.ShapeDtypeStruct((1,), jnp.int32))
             treedef = jax.tree.structure(shape)
             stages = FactorStages(
                 reset=layout.per_device(lambda seeds: jax.tree.leaves(reset(seeds))),

@@ -150,9 +150,9 @@ def per_env_leaves(scene: Scene) -> Any:
     one to every per-env leaf; a leaf the batch shares keeps the single env's rank)."""
     seed = jax.ShapeDtypeStruct((), jnp.int32)
     key = jax.ShapeDtypeStruct((2,), jnp.uint32)
-    one = jax.eval_shape(scene.reset_with_seed, seed, key)
+    one = jax.eval_shape(scene.traced.reset_with_seed, seed, key)
     two = jax.eval_shape(
-        jax.vmap(scene.reset_with_seed),
+        jax.vmap(scene.traced.reset_with_seed),
         jax.ShapeDtypeStruct((2,), jnp.int32),
         jax.ShapeDtypeStruct((2, 2), jnp.uint32),
     )
@@ -184,7 +184,7 @@ def make_refill_fns(
     def fresh(seeds: jax.Array, rows: jax.Array) -> Slots:
         chosen = seeds[rows]
         reset_keys, policy_keys = seed_keys(chosen)
-        state = jax.vmap(scene.reset_with_seed)(chosen, reset_keys)
+        state = jax.vmap(scene.traced.reset_with_seed)(chosen, reset_keys)
         return Slots(
             state=state,
             pstate=policy_state0(policy, state.obs, rows.shape[0]),

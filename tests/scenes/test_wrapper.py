@@ -17,8 +17,8 @@ import pytest
 from openral_mjx.scenes.base import Scene, State
 from openral_mjx.scenes.wrapper import SceneWrapper
 
-# Derived from the wrapper's own `reset` (as `Scene` does), not forwarded.
-DERIVED = {"observation_size", "observation_spec"}
+# Derived from the wrapper's own `reset_with_seed` and `step` (as `Scene` does), not forwarded.
+DERIVED = {"observation_size", "observation_spec", "traced"}
 INTERFACE = sorted({n for n in dir(Scene) if not n.startswith("_")} | set(Scene.__annotations__))
 METHODS = [n for n in INTERFACE if inspect.isfunction(getattr(Scene, n, None))]
 ATTRIBUTES = [n for n in INTERFACE if n not in METHODS and n not in DERIVED]
@@ -108,9 +108,9 @@ class _Vector(Scene):
 
 
 def test_observation_shape_is_derived_from_the_wrapper_reset():
-    class Longer(SceneWrapper):
-        def reset(self, key: jax.Array) -> State:
-            state = self.inner.reset(key)
+    class Longer(SceneWrapper):  # the reset the runner calls, `reset_with_seed`
+        def reset_with_seed(self, seed: jax.Array, key: jax.Array) -> State:
+            state = self.inner.reset_with_seed(seed, key)
             return state.replace(obs=jnp.concatenate([state.obs, state.obs[:2]]))
 
     inner = _Vector()

@@ -20,14 +20,20 @@ class RgbStyle:
             as in MuJoCo's renderer. Costs a ray per such light and pixel.
         samples: sub-pixel samples per axis, averaged (anti-aliasing, as MuJoCo's multisampled
             offscreen buffer smooths edges); costs `samples`**2 renders.
+        texels: on `warp`, each texture is averaged over boxes of side width / `texels` before
+            it is drawn, standing in for the mipmaps MuJoCo's renderer samples a minified
+            texture from (MuJoCo-Warp samples the full texture, so fine patterns alias into
+            noise); 0 draws the textures as they are. Costs nothing per frame.
     """
 
     textures: bool = False
     shadows: bool = False
     samples: int = 1
+    texels: int = 0
 
     def __post_init__(self) -> None:
         check(self.samples >= 1, f"rgb samples={self.samples}: must be >= 1")
+        check(self.texels >= 0, f"rgb texels={self.texels}: must be >= 0 (0: no prefilter)")
 
 
 @dataclasses.dataclass(frozen=True)

@@ -30,6 +30,7 @@ import jax
 import jax.numpy as jnp
 import mujoco
 import numpy as np
+from scipy import ndimage
 
 from openral_mjx.core.errors import ConfigError, unknown
 from openral_mjx.core.rotations import quat_to_mat
@@ -98,24 +99,51 @@ def srgb_to_linear(texels: np.ndarray) -> np.ndarray:
     return np.round(lin * 255.0).astype(np.uint8)
 
 
-def render_model(model: mujoco.MjModel) -> mujoco.MjModel:
-    """The model MuJoCo-Warp's renderer draws: `model`, or a copy whose sRGB-encoded textures
-    (`tex_colorspace`) hold their linear values. MuJoCo's renderer decodes those when it
-    samples them (OpenGL's sRGB texture formats) and writes the result unencoded; MuJoCo-Warp
-    reads every texel as stored, which drew LIBERO's sRGB floor ~30/255 brighter."""
-    srgb = np.flatnonzero(model.tex_colorspace == int(mujoco.mjtColorSpace.mjCOLORSPACE_SRGB))
-    srgb = [int(t) for t in srgb if model.tex_adr[t] >= 0]  # by reference: decoded from file
-    if not srgb:
+def box_filtered(texels: np.ndarray, side: int, wrap: bool) -> np.ndarray:
+    """`texels` (H, W, C) uint8 averaged over `side` x `side` boxes, same size: the texel a
+    mipmap level of that footprint would give there. `wrap`: a repeating texture's edges meet
+    its opposite edges; else they extend."""
+    mode = "wrap" if wrap else "nearest"
+    mean = ndimage.uniform_filter(texels.astype(np.float32), size=(side, side, 1), mode=mode)
+    return np.clip(np.round(mean), 0, 255).astype(np.uint8)
+
+
+def render_model(model: mujoco.MjModel, texels: int = 0) -> mujoco.MjModel:
+    """The model MuJoCo-Warp's renderer draws: `model`, or a copy whose textures are changed
+    to be drawn as MuJoCo's renderer draws them.
+
+    - sRGB-encoded textures (`tex_colorspace`) hold their linear values. MuJoCo's renderer
+      decodes those when it samples them (OpenGL's sRGB texture formats) and writes the result
+      unencoded; MuJoCo-Warp reads every texel as stored, which drew LIBERO's sRGB floor
+      ~30/255 brighter.
+    - `texels` > 0: each texture wider than that is averaged over boxes of side width /
+      `texels` (`box_filtered`; a cube texture face by face), in linear values, as a mipmap
+      level is. MuJoCo's renderer samples a minified texture from its mipmaps; MuJoCo-Warp
+      samples the full one, so a wood grain seen from afar aliases into noise.
+    """
+    srgb = model.tex_colorspace == int(mujoco.mjtColorSpace.mjCOLORSPACE_SRGB)
+    wide = (model.tex_width > texels) if texels > 0 else np.zeros(model.ntex, bool)
+    changed = [t for t in np.flatnonzero(srgb | wide) if model.tex_adr[t] >= 0]
+    if not changed:
         return model
     out = copy.copy(model)  # the arrays too: the physics' model keeps its textures
-    for t in srgb:
-        a = int(out.tex_adr[t])
-        n = int(out.tex_width[t]) * int(out.tex_height[t]) * int(out.tex_nchannel[t])
-        texels = out.tex_data[a : a + n].reshape(-1, int(out.tex_nchannel[t]))
-        rgb = min(3, texels.shape[1])  # alpha stays linear
-        texels[:, :rgb] = srgb_to_linear(texels[:, :rgb])
-        out.tex_data[a : a + n] = texels.reshape(-1)
-        out.tex_colorspace[t] = int(mujoco.mjtColorSpace.mjCOLORSPACE_LINEAR)
+    cube = int(mujoco.mjtTexture.mjTEXTURE_CUBE)
+    for t in map(int, changed):
+        a, nch = int(out.tex_adr[t]), int(out.tex_nchannel[t])
+        w, h = int(out.tex_width[t]), int(out.tex_height[t])
+        image = out.tex_data[a : a + w * h * nch].reshape(h, w, nch)
+        rgb = min(3, nch)  # alpha stays linear
+        if srgb[t]:
+            image[..., :rgb] = srgb_to_linear(image[..., :rgb])
+            out.tex_colorspace[t] = int(mujoco.mjtColorSpace.mjCOLORSPACE_LINEAR)
+        if wide[t]:
+            side = max(1, round(w / texels))
+            faces = h // w if int(out.tex_type[t]) == cube and h % w == 0 else 1
+            rows = h // faces
+            for f in range(faces):  # a cube's faces do not wrap into each other
+                face = image[f * rows : (f + 1) * rows]
+                face[..., :rgb] = box_filtered(face[..., :rgb], side, wrap=faces == 1)
+        out.tex_data[a : a + w * h * nch] = image.reshape(-1)
     return out
 
 
@@ -242,7 +270,7 @@ class WarpCameras:
         """The render context for batches of `nworld` (built on first use)."""
         if nworld not in self._contexts:
             self._contexts[nworld] = mjx.create_render_context(
-                render_model(self.mj_model),
+                render_model(self.mj_model, self.style.texels),
                 nworld=nworld,
                 devices=self.devices,
                 cam_active=[c.cam_id for c in self.cameras],

@@ -231,6 +231,59 @@ def test_warp_draws_srgb_textures_decoded_as_mujocos_renderer_does():
     assert srgb_to_linear(np.array([0, 10, 255], np.uint8)).tolist() == [0, 1, 255]
 
 
+_CHECKERS = """
+<mujoco>
+  <asset>
+    <texture name="board" type="2d" builtin="checker" rgb1="1 1 1" rgb2="0 0 0" width="64"
+             height="64" colorspace="linear"/>
+    <texture name="cube" type="cube" builtin="checker" rgb1="1 1 1" rgb2="0 0 0" width="32"
+             height="32" colorspace="linear"/>
+    <texture name="small" type="2d" builtin="checker" rgb1="1 1 1" rgb2="0 0 0" width="8"
+             height="8" colorspace="linear"/>
+  </asset>
+  <worldbody/>
+</mujoco>
+"""
+
+
+def test_prefilter_averages_each_texture_as_a_mipmap_level_would():
+    """`texels`: a texture wider than that is averaged over boxes of side width / texels, as
+    the mipmap level MuJoCo's renderer would sample it from. MuJoCo's checker builtin is 2 x 2
+    squares of half the texture's side. At 1 texel a box spans the whole texture, a full
+    period (wrapping at the edges), so a 2-D texture turns flat at its mean, and a cube's
+    faces, each filtered alone with its edges extended, lose most of their contrast. At 16,
+    boxes of 4 on the 64-wide board blur 2 texels either side of a square's edge and leave
+    the rest; a texture no wider than `texels`, and the physics' model, keep their texels."""
+    model = mujoco.MjModel.from_xml_string(_CHECKERS)
+
+    def image(m, name):
+        t = m.tex(name).id
+        w, h, c = m.tex_width[t], m.tex_height[t], m.tex_nchannel[t]
+        return m.tex_data[m.tex_adr[t] : m.tex_adr[t] + w * h * c].reshape(h, w, c).astype(float)
+
+    board = image(model, "board")
+    assert set(np.unique(board)) == {0.0, 255.0}  # a checker of white and black
+    flat = render_model(model, texels=1)
+    assert np.abs(image(flat, "board") - 127.5).max() <= 0.5
+    cube, faces = image(model, "cube"), image(flat, "cube")
+    w = cube.shape[1]
+    for f in range(cube.shape[0] // w):  # each face alone, its edges extended (no wrap)
+        face = slice(f * w, (f + 1) * w)
+        assert faces[face].std() < cube[face].std() / 2
+        assert abs(faces[face].mean() - cube[face].mean()) < 16
+    blurred = image(render_model(model, texels=16), "board")
+    assert abs(blurred.mean() - board.mean()) <= 0.5  # a box filter keeps the mean
+    inner = np.r_[2:30, 34:62]  # rows and columns 2 or more from every square's edge
+    np.testing.assert_array_equal(blurred[np.ix_(inner, inner)], board[np.ix_(inner, inner)])
+    assert 0 < blurred[10, 31, 0] < 255 and 0 < blurred[31, 10, 0] < 255  # at an edge: mixed
+    assert np.abs(image(flat, "small") - 127.5).max() <= 0.5  # 8 wide: filtered at 1
+    np.testing.assert_array_equal(
+        image(render_model(model, texels=8), "small")[..., 0] > 0, image(model, "small")[..., 0] > 0
+    )  # at 8: as it was
+    assert render_model(model, texels=64) is model  # nothing wider, nothing sRGB
+    np.testing.assert_array_equal(image(model, "board"), board)  # the physics' model as it was
+
+
 def test_rgb_needs_a_renderer():
     with pytest.raises(ConfigError, match="rgb camera 'rgb_overhead' needs backend warp or c"):
         make_scene("so101_box", {"obs_rgb_cameras": ["overhead"]}, backend="mjx")

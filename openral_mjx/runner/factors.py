@@ -41,13 +41,10 @@ def factor_stages(scene: Scene, devices: Sequence[jax.Device] | None = None) -> 
                 return s
             return s.replace(physics=s.physics.replace(data=None))
 
-        # Whether the scene has factors, from one env's reset (its trace is the episode's,
-        # `Scene.traced`): most scenes have none, and then no batch of resets is traced.
-        seed, key = jax.ShapeDtypeStruct((), jnp.int32), jax.ShapeDtypeStruct((2,), jnp.uint32)
+        # Whether the scene has factors, from one env's reset state (`Scene.state_spec`):
+        # most scenes have none, and then no batch of resets is traced.
         stages = None
-        if jax.eval_shape(
-            scene.episode_factors, jax.eval_shape(scene.traced.reset_with_seed, seed, key)
-        ):
+        if jax.eval_shape(scene.episode_factors, scene.state_spec):
             shape = jax.eval_shape(reset, jax.ShapeDtypeStruct((1,), jnp.int32))
             treedef = jax.tree.structure(shape)
             stages = FactorStages(

@@ -148,9 +148,7 @@ def where_per_env(mask: jax.Array, a: Any, b: Any, per_env: Any = None) -> Any:
 def per_env_leaves(scene: Scene) -> Any:
     """For each leaf of a batch of the scene's states: whether it has the env axis (vmap adds
     one to every per-env leaf; a leaf the batch shares keeps the single env's rank)."""
-    seed = jax.ShapeDtypeStruct((), jnp.int32)
-    key = jax.ShapeDtypeStruct((2,), jnp.uint32)
-    one = jax.eval_shape(scene.traced.reset_with_seed, seed, key)
+    one = scene.state_spec
     two = jax.eval_shape(
         jax.vmap(scene.traced.reset_with_seed),
         jax.ShapeDtypeStruct((2,), jnp.int32),

@@ -228,10 +228,17 @@ class Scene(abc.ABC):
         return int(self.observation_spec.shape[-1])
 
     @functools.cached_property
+    def state_spec(self) -> State:
+        """Shapes and dtypes of one env's reset state (`traced.reset_with_seed` evaluated for
+        shape, so the runner's later traces reuse it)."""
+        seed = jax.ShapeDtypeStruct((), jnp.int32)
+        key = jax.ShapeDtypeStruct((2,), jnp.uint32)
+        return jax.eval_shape(self.traced.reset_with_seed, seed, key)
+
+    @functools.cached_property
     def observation_spec(self) -> Any:
         """Shapes and dtypes of one env's observation (an array, or a dict of arrays)."""
-        seed = jax.ShapeDtypeStruct((), jnp.int32)
-        return jax.eval_shape(self.traced.reset_with_seed, seed, jax.random.PRNGKey(0)).obs
+        return self.state_spec.obs
 
     @property
     def control_dt(self) -> float:

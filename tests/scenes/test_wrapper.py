@@ -18,7 +18,7 @@ from openral_mjx.scenes.base import Scene, State
 from openral_mjx.scenes.wrapper import SceneWrapper
 
 # Derived from the wrapper's own `reset_with_seed` and `step` (as `Scene` does), not forwarded.
-DERIVED = {"observation_size", "observation_spec", "traced"}
+DERIVED = {"observation_size", "observation_spec", "state_spec", "traced"}
 INTERFACE = sorted({n for n in dir(Scene) if not n.startswith("_")} | set(Scene.__annotations__))
 METHODS = [n for n in INTERFACE if inspect.isfunction(getattr(Scene, n, None))]
 ATTRIBUTES = [n for n in INTERFACE if n not in METHODS and n not in DERIVED]

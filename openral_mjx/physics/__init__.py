@@ -8,7 +8,6 @@ scene, a report or `--help` never needs.
 from __future__ import annotations
 
 import importlib
-from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 import jax
@@ -30,6 +29,7 @@ if TYPE_CHECKING:
     from openral_mjx.physics.warp_backend import WarpBackend
 
 _LAZY = {"MjxBackend": "mjx_backend", "WarpBackend": "warp_backend"}
+_CLASSES = {"mjx": "MjxBackend", "warp": "WarpBackend"}  # the lazily imported backends
 
 
 def __getattr__(name: str) -> Any:
@@ -68,12 +68,8 @@ def make_backend(
 ) -> PhysicsBackend:
     """Build the named backend (after resolving `auto`) for a composed scene spec."""
     resolved = resolve_backend_name(name)
-    factories: dict[str, Callable[[], type[PhysicsBackend]]] = {
-        "mjx": lambda: __getattr__("MjxBackend"),
-        "warp": lambda: __getattr__("WarpBackend"),
-        "c": lambda: CBackend,
-    }
-    return factories[resolved]()(spec, quantities, n_substeps, settings)
+    cls = CBackend if resolved == "c" else __getattr__(_CLASSES[resolved])
+    return cls(spec, quantities, n_substeps, settings)
 
 
 __all__ = [

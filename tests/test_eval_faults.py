@@ -21,6 +21,7 @@ import pytest
 from cli_runs import run_cli, stop_at
 
 from openral_mjx import eval as eval_cli
+from openral_mjx.cli import eval_plan
 from openral_mjx.evaluation import suite as suite_module
 from openral_mjx.evaluation.run import build_scene
 from openral_mjx.report import load_report
@@ -100,7 +101,7 @@ def test_interrupted_suite_resumes_to_the_uninterrupted_result(monkeypatch, caps
     on its own seeds' episodes: `--opt`-free tabletop_push with the task's friction."""
     frictions = {"a": 0.2, "b": 1.0}
     monkeypatch.setattr(suite_module, "scene_suite", lambda scene, suite: list(frictions))
-    monkeypatch.setattr(eval_cli, "scene_suite", lambda scene, suite: list(frictions))
+    monkeypatch.setattr(eval_plan, "scene_suite", lambda scene, suite: list(frictions))
 
     def stand_in(name, options, spec, randomize=()):
         friction = f"friction={frictions[options['task']]}"

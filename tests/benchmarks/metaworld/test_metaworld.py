@@ -14,8 +14,8 @@ import numpy as np
 import pytest
 from worker_envs import require_worker_envs
 
+from openral_mjx.cli.eval_text import listing
 from openral_mjx.core.errors import ConfigError
-from openral_mjx.eval import _listing
 from openral_mjx.evaluation import evaluate
 from openral_mjx.evaluation.spec import RunSpec
 from openral_mjx.evaluation.suite import evaluate_suite
@@ -140,7 +140,7 @@ def test_config_errors_are_one_line_and_list_the_valid_names(push_c):
     no_expert = make_scene("metaworld", {"expert": False}, backend="host")
     with pytest.raises(ConfigError, match="drop --opt expert=false"):
         make_policy("metaworld-expert", no_expert)
-    assert "metaworld-expert" in _listing() and "metaworld" in _listing()
+    assert "metaworld-expert" in listing() and "metaworld" in listing()
 
 
 def test_a_crashed_worker_fails_only_its_envs(python):

@@ -40,15 +40,25 @@ class LiberoReference:
     def _call(self, method: str, **kwargs: Any) -> Any:
         return self.worker.call({"op": "call", "method": method, "kwargs": kwargs}, TIMEOUT_S)
 
-    def rollout(self, init: int, actions: np.ndarray) -> dict[str, np.ndarray]:
-        """Initial state `init`, LIBERO's settle, then `actions`: per step 0..T the joint
-        positions and velocities, lerobot's state and the goal."""
-        return self._call("rollout", init=int(init), actions=np.asarray(actions, np.float64))
+    def rollout(
+        self, init: int, actions: np.ndarray, sampled: bool = False
+    ) -> dict[str, np.ndarray]:
+        """Initial state `init` (`sampled`: the mass-seed protocol's draw for seed `init`),
+        LIBERO's settle, then `actions`: per step 0..T the joint positions and velocities,
+        lerobot's state and the goal."""
+        actions = np.asarray(actions, np.float64)
+        return self._call("rollout", init=int(init), actions=actions, sampled=sampled)
 
-    def body_poses(self, init: int) -> dict[str, np.ndarray]:
+    def drawn_state(self, seed: int) -> dict[str, np.ndarray]:
+        """LIBERO's full reset for seed `seed` of the mass-seed protocol, before the settle:
+        the flattened state and every body's pose (`TaskExport.drawn_state`)."""
+        return self._call("drawn_state", seed=int(seed))
+
+    def body_poses(self, init: int, sampled: bool = False) -> dict[str, np.ndarray]:
         """Every body's `body_pos` and `body_quat` after LIBERO's reset to initial state
-        `init` (LIBERO's body order)."""
-        return self._call("body_poses", init=int(init))
+        `init` (`sampled`: the mass-seed protocol's draw for seed `init`; LIBERO's body
+        order)."""
+        return self._call("body_poses", init=int(init), sampled=sampled)
 
     def check_success(self, states: np.ndarray) -> np.ndarray:
         """LIBERO's goal at each flattened ``[time, qpos, qvel]`` state."""

@@ -22,7 +22,7 @@ import json
 import os
 import shutil
 import tempfile
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -133,6 +133,72 @@ def _plain(value: Any) -> Any:
 def load_task(task: str) -> TaskModel:
     """Task ``suite/index``'s export, from the cache or exported now (about 20 s)."""
     return _read(task) or _export(task)
+
+
+SAMPLED_BLOCK = 256  # seeds drawn per worker call: a progress step, and what a failure loses
+SAMPLED_PER_SEED = ("states", "fixture_pos", "fixture_quat")
+
+
+def _read_sampled(path: Path) -> dict[str, np.ndarray] | None:
+    try:
+        with np.load(path) as z:
+            arrays = {k: z[k] for k in z.files}
+    except (OSError, ValueError):
+        return None
+    return arrays if int(arrays.get("format", -1)) == FORMAT else None
+
+
+def load_sampled(
+    task: str, n: int, on_block: Callable[[int, int], None] | None = None
+) -> dict[str, np.ndarray]:
+    """The mass-seed protocol's first `n` initial states of task ``suite/index``: per seed
+    the flattened ``[time, qpos, qvel]`` state (``states``) and the poses of the bodies
+    LIBERO's reset places without a joint (``fixture_ids`` in the export's body order,
+    ``fixture_pos``, ``fixture_quat``), as `TaskExport.sampled_states` draws them. Kept in the
+    export cache (``sampled.npz``) and extended in LIBERO's worker where it holds fewer;
+    `on_block(done, n)` after each block of `SAMPLED_BLOCK` seeds drawn."""
+    load_task(task)  # the task's own export first: its format marks this file's too
+    path = _task_dir(task) / "sampled.npz"
+    have = _read_sampled(path)
+    count = 0 if have is None else len(have["states"])
+    if count >= n:
+        return {**have, **{k: have[k][:n] for k in SAMPLED_PER_SEED}}
+    log = None
+    try:
+        with task_worker(task) as (worker, log):
+            while count < n:
+                stop = min(n, count + SAMPLED_BLOCK)
+                msg = {"op": "call", "method": "sampled_states", "kwargs": {}}
+                msg["kwargs"] = {"start": count, "stop": stop}
+                new = worker.call(msg, TIMEOUT_S)
+                have = _grown(have, new)
+                _write_npz(path, have)
+                count = stop
+                if on_block is not None:
+                    on_block(count, n)
+    except (RemoteError, WorkerFailure) as e:
+        raise ConfigError(
+            f"drawing LIBERO task {task!r}'s initial states failed: {e} (log: {log})"
+        ) from None
+    assert have is not None
+    return {**have, **{k: have[k][:n] for k in SAMPLED_PER_SEED}}
+
+
+def _grown(have: dict[str, np.ndarray] | None, new: dict[str, Any]) -> dict[str, np.ndarray]:
+    """`have` with the seeds of `new` (the next block) appended."""
+    new = {k: np.asarray(v) for k, v in new.items()}
+    if have is None:
+        return {"format": np.asarray(FORMAT), **new}
+    if not np.array_equal(have["fixture_ids"], new["fixture_ids"]):
+        raise ConfigError("LIBERO's fixtures changed between blocks of drawn initial states")
+    grown = {k: np.concatenate([have[k], new[k]]) for k in SAMPLED_PER_SEED}
+    return {**have, **grown}
+
+
+def _write_npz(path: Path, arrays: dict[str, np.ndarray]) -> None:
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.npz")
+    np.savez(tmp, **arrays)
+    os.replace(tmp, path)
 
 
 def bundled(path: str) -> str:

@@ -46,8 +46,8 @@ class TaskExport:
         self.host = LiberoEnv(task, image_size=image_size, expert=True)
         self.env = self.host.env.env  # robosuite's environment under LIBERO's wrapper
 
-    def _reset(self, init: int) -> None:
-        self.host.reset(seed=0, options={"init_state": init})
+    def _reset(self, init: int, sampled: bool = False) -> None:
+        self.host.reset(seed=0, options={"init_state": init, "sampled": sampled})
 
     def model(self) -> dict[str, Any]:
         env = self.env
@@ -139,10 +139,55 @@ class TaskExport:
         self._reset(0)  # leave the env as every other method finds it
         return {"fixture_pos": np.stack(pos), "fixture_quat": np.stack(quat)}
 
-    def body_poses(self, init: int) -> dict[str, np.ndarray]:
+    def sampled_states(self, start: int, stop: int) -> dict[str, np.ndarray]:
+        """LIBERO's own initial state for each seed in ``start..stop-1`` of the mass-seed
+        protocol: numpy's RNG seeded with the seed as the worker's sampled `reset` seeds it,
+        then the reset's sampling as `fixture_poses` runs it (objects in their BDDL regions,
+        fixtures, articulated joints; retried as LIBERO's wrapper retries a failed placement).
+        Per seed the flattened ``[time, qpos, qvel]`` state and the poses of the fixtures'
+        root bodies (``fixture_ids``: LIBERO's reset places them without a joint)."""
+        from robosuite.utils.errors import RandomizationError
+
+        inner = self.env
+        m = inner.sim.model._model
+        ids = np.array(sorted(m.body(f.root_body).id for f in inner.fixtures_dict.values()), int)
+        states, pos, quat = [], [], []
+        for seed in range(start, stop):
+            np.random.seed(seed)
+            while True:
+                inner.sim.reset()
+                try:
+                    inner._reset_internal()
+                    break
+                except RandomizationError:
+                    continue
+            inner.sim.forward()
+            states.append(np.asarray(inner.sim.get_state().flatten(), np.float64))
+            pos.append(m.body_pos[ids].copy())
+            quat.append(m.body_quat[ids].copy())
+        self._reset(0)  # leave the env as every other method finds it
+        return {
+            "states": np.stack(states),
+            "fixture_ids": ids.astype(np.int64),
+            "fixture_pos": np.stack(pos),
+            "fixture_quat": np.stack(quat),
+        }
+
+    def drawn_state(self, seed: int) -> dict[str, np.ndarray]:
+        """LIBERO's full reset for seed `seed` of the mass-seed protocol, as the worker's
+        sampled `reset` runs it before its settle steps: the flattened ``[time, qpos, qvel]``
+        state and every body's pose (what `sampled_states` must reproduce)."""
+        self.host.start(seed, sampled=True)
+        sim = self.env.sim
+        m = sim.model._model
+        state = np.asarray(sim.get_state().flatten(), np.float64)
+        return {"state": state, "body_pos": m.body_pos.copy(), "body_quat": m.body_quat.copy()}
+
+    def body_poses(self, init: int, sampled: bool = False) -> dict[str, np.ndarray]:
         """Every body's pose in the model after the worker's full reset to initial state
-        `init` (what `fixture_poses` must reproduce)."""
-        self._reset(init)
+        `init` (`sampled`: to the mass-seed protocol's draw for seed `init`): what
+        `fixture_poses` and `sampled_states` must reproduce."""
+        self._reset(init, sampled)
         m = self.env.sim.model._model
         return {"body_pos": m.body_pos.copy(), "body_quat": m.body_quat.copy()}
 
@@ -233,11 +278,13 @@ class TaskExport:
             out.append(bool(self.env._check_success()))
         return np.array(out)
 
-    def rollout(self, init: int, actions: np.ndarray) -> dict[str, np.ndarray]:
-        """Reset to initial state `init` (and LIBERO's settle steps), then play `actions`
-        ((T, 7)); per step 0..T: qpos, qvel, the lerobot state, the ``expert`` entry, the
-        success predicate."""
-        self._reset(init)
+    def rollout(
+        self, init: int, actions: np.ndarray, sampled: bool = False
+    ) -> dict[str, np.ndarray]:
+        """Reset to initial state `init` (`sampled`: the mass-seed protocol's draw for seed
+        `init`) and LIBERO's settle steps, then play `actions` ((T, 7)); per step 0..T: qpos,
+        qvel, the lerobot state, the ``expert`` entry, the success predicate."""
+        self._reset(init, sampled)
         sim = self.env.sim
         qpos, qvel, state, expert, success = [], [], [], [], []
 

@@ -2,8 +2,9 @@
 
 Task ``SUITE/INDEX`` (`libero_spatial`, `libero_object`, `libero_goal`, `libero_10`,
 `libero_90`) runs LIBERO's shipped BDDL file; seed s starts from the task's shipped initial
-state ``s mod 50`` (LIBERO's protocol evaluates initial states 0..49, i.e. seeds 0..49), and
-seeds robosuite's RNG from the episode's reset key. Observation: ``image`` and
+state ``s mod 50`` (LIBERO's protocol evaluates initial states 0..49, i.e. seeds 0..49), or
+with option ``protocol=sampled`` from LIBERO's own reset draw with numpy seeded by s (mod
+`sampled_states`, default 1,024). Observation: ``image`` and
 ``wrist_image`` (RGB uint8, `image_size` square, upright) and ``state`` (end-effector position,
 axis-angle, gripper fingers: 8 floats), as lerobot's LIBERO policies expect. Action: 7-D OSC
 pose delta and gripper in [-1, 1], 20 Hz. Success: LIBERO's goal predicates. Cameras render
@@ -33,6 +34,20 @@ SUITES = {
     "libero_90": (90, 400),
 }
 INIT_STATES = 50  # shipped initial states per task
+PROTOCOLS = ("standard", "sampled")
+SAMPLED_STATES = 1024  # the mass-seed protocol's default count of drawn initial states
+
+
+def check_protocol(protocol: str, sampled_states: int) -> None:
+    """The initial-state options shared by `libero` and `libero_mjx`, checked."""
+    check(protocol in PROTOCOLS, f"option protocol={protocol!r}; valid: {', '.join(PROTOCOLS)}")
+    check(sampled_states >= 1, f"option sampled_states={sampled_states}: must be >= 1")
+
+
+def init_state_count(protocol: str, sampled_states: int) -> int:
+    """How many distinct initial states seeds cycle through: LIBERO's 50 shipped ones, or the
+    mass-seed protocol's `sampled_states` draws (seed s starts from state s mod that count)."""
+    return INIT_STATES if protocol == "standard" else sampled_states
 
 
 def parse_task(task: str) -> tuple[str, int]:
@@ -63,18 +78,24 @@ def instruction(task: str) -> str:
 @dataclasses.dataclass(frozen=True)
 class LiberoOptions(HostOptions):
     """`libero` options: the task, the camera resolution, the episode limit (default: the
-    suite's), the offscreen GL platform (`egl`, or `osmesa` where EGL is missing), and whether
-    the observation has the ``expert`` entry that `libero-expert` reads."""
+    suite's), the offscreen GL platform (`egl`, or `osmesa` where EGL is missing), whether
+    the observation has the ``expert`` entry that `libero-expert` reads, and the initial
+    states: `protocol` ``standard`` (LIBERO's 50 shipped states, seed s -> state s mod 50) or
+    ``sampled`` (LIBERO's own reset draws the objects, fixtures and joints from the task's
+    BDDL regions, numpy seeded with s mod `sampled_states`: thousands of distinct seeds)."""
 
     task: str = "libero_spatial/0"
     image_size: int = 128
     max_steps: int | None = None
     gl: str = "egl"
     expert: bool = True
+    protocol: str = "standard"
+    sampled_states: int = SAMPLED_STATES
 
     def __post_init__(self) -> None:
         super().__post_init__()
         parse_task(self.task)
+        check_protocol(self.protocol, self.sampled_states)
         check(self.image_size >= 8, f"option image_size={self.image_size}: must be >= 8")
         if self.max_steps is not None:
             check(self.max_steps >= 1, f"option max_steps={self.max_steps}: must be >= 1")
@@ -101,7 +122,8 @@ def libero(options: LiberoOptions, **_: object) -> HostScene:
         observation,
         o.max_steps or SUITES[suite][1],
         o.gl,
-        n_init_states=INIT_STATES,
+        n_init_states=init_state_count(o.protocol, o.sampled_states),
+        reset_options={"sampled": True} if o.protocol == "sampled" else {},
         instruction=instruction(o.task),
     )
 

@@ -118,16 +118,28 @@ class LiberoEnv:
         """Initial state ``options["init_state"] mod 50`` after LIBERO's reset and settle steps.
         numpy's RNG, which LIBERO's reset draws its fixtures' poses from, is seeded with that
         index rather than `seed`: seed s then places the fixtures the same on every run and
-        batch layout, and as `libero_mjx` does (`TaskExport.fixture_poses`)."""
+        batch layout, and as `libero_mjx` does (`TaskExport.fixture_poses`).
+
+        With ``options["sampled"]``, the state is LIBERO's own draw instead (objects in their
+        BDDL regions, fixtures, articulated joints), numpy's RNG seeded with
+        ``options["init_state"]`` (not taken mod 50): the mass-seed protocol, where
+        `libero_mjx` reads the same draw from `TaskExport.sampled_states`."""
         del seed  # the initial state and the fixtures follow from `init_state` alone
         options = options or {}
-        init = int(options.get("init_state", 0)) % len(self.init_states)
-        self.env.seed(init)
-        self.env.reset()
-        raw = self.env.set_init_state(self.init_states[init])
+        init, raw = self.start(int(options.get("init_state", 0)), bool(options.get("sampled")))
         for _ in range(SETTLE_STEPS):
             raw, _, _, _ = self.env.step(DUMMY_ACTION)
         return self._obs(raw), {"is_success": False, "init_state": init}
+
+    def start(self, init: int, sampled: bool = False) -> tuple[int, dict[str, Any]]:
+        """`reset`'s state before the settle steps: (the initial state's index, LIBERO's raw
+        observation)."""
+        init = init if sampled else init % len(self.init_states)
+        self.env.seed(init)
+        raw = self.env.reset()
+        if not sampled:
+            raw = self.env.set_init_state(self.init_states[init])
+        return init, raw
 
     def step(self, action: np.ndarray) -> tuple[dict, float, bool, bool, dict]:
         raw, reward, done, _ = self.env.step(np.asarray(action, np.float64))

@@ -56,6 +56,7 @@ def panda_osc_scene(
     gl: str,
     n_init_states: int = 0,
     instruction: str = "",
+    reset_options: dict[str, Any] | None = None,
 ) -> HostScene:
     """A robosuite-based scene (robosuite itself, or LIBERO on it): a Panda under OSC_POSE
     (7-D action in [-1, 1], 20 Hz) in the `lerobot-libero` worker environment."""
@@ -72,6 +73,7 @@ def panda_osc_scene(
         control_dt=CONTROL_DT,
         max_steps=max_steps,
         n_init_states=n_init_states,
+        reset_options=dict(reset_options or {}),
         instruction=instruction,
     )
     return HostScene(spec, options, ENV, ensure_env(ENV))

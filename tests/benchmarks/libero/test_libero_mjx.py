@@ -19,7 +19,7 @@ import pytest
 from worker_envs import require_worker_envs
 
 from openral_mjx.benchmarks.libero.agreement import libero_reference
-from openral_mjx.benchmarks.libero.assets import ENV, load_task, physics_spec
+from openral_mjx.benchmarks.libero.assets import ENV, load_sampled, load_task, physics_spec
 from openral_mjx.benchmarks.libero.mirror import LiberoMjx, LiberoMjxOptions
 from openral_mjx.benchmarks.libero.mirror.controller import RobotDynamics
 
@@ -110,6 +110,35 @@ def test_fixtures_sit_where_libero_s_reset_puts_them(scene: LiberoMjx, libero) -
             np.testing.assert_allclose(np.asarray(fields[name])[ids], ref[name], atol=1e-6)
     # the fixtures do move between initial states (by ~1 cm), so one pose for all would fail
     assert np.abs(refs[1]["body_pos"] - refs[17]["body_pos"]).max() > 1e-3
+
+
+def test_sampled_protocol_starts_from_libero_s_own_draw(scene: LiberoMjx, libero) -> None:
+    """The mass-seed protocol (``protocol=sampled``): seed s is LIBERO's own reset draw with
+    numpy seeded by s (objects in their BDDL regions, the fixtures, the drawers' joints). The
+    mirror reads the draw the export kept (`load_sampled`); LIBERO's full reset draws it live:
+    the same state, bit for bit, and every body where LIBERO puts it. Draws 1 and 2 (the
+    mirror's seeds 4 and 2: with 3 states, seed s is draw s mod 3) start apart, and apart
+    from the standard protocol's state 1."""
+    options = LiberoMjxOptions(task=TASK, protocol="sampled", sampled_states=3)
+    sampled = LiberoMjx(options, backend="c")
+    assert sampled.n_init_states == 3
+    kept = load_sampled(TASK, 3)["states"]
+    names = [str(n) for n in scene.export.meta["body_names"]]
+    ids = np.array([scene.mj_model.body(n).id for n in names])
+    reset = jax.jit(sampled.reset_from)
+    nq = sampled.mj_model.nq
+    for seed, mirror_seed in ((1, 4), (2, 2)):
+        live = libero.drawn_state(seed)
+        np.testing.assert_array_equal(kept[seed], live["state"])
+        init = mirror_seed % sampled.n_init_states
+        np.testing.assert_allclose(sampled._init_qpos[init], live["state"][1 : 1 + nq], atol=1e-7)
+        fields = reset(jnp.int32(init)).physics.fields
+        for name in ("body_pos", "body_quat"):
+            got = np.asarray(fields.get(name, getattr(sampled.mj_model, name)))
+            np.testing.assert_allclose(got[ids], live[name], atol=1e-6)
+    standard = scene.export.init_states[1][1 : 1 + nq]
+    assert np.abs(kept[1][1 : 1 + nq] - kept[2][1 : 1 + nq]).max() > 1e-3
+    assert np.abs(kept[1][1 : 1 + nq] - standard).max() > 1e-3
 
 
 def goal_states(scene: LiberoMjx, n: int, seed: int) -> np.ndarray:

@@ -10,6 +10,7 @@ import pytest
 
 from openral_mjx.benchmarks.libero import render
 from openral_mjx.benchmarks.libero.assets import load_task
+from openral_mjx.benchmarks.libero.host_scene import LiberoOptions, init_state_count
 from openral_mjx.benchmarks.libero.mirror import LiberoMjx, LiberoMjxOptions
 from openral_mjx.core.errors import ConfigError
 
@@ -56,6 +57,18 @@ def test_pixel_agreement_counts_pixels_by_their_worst_channel() -> None:
     got = render.pixel_agreement(ours, ref)
     assert got["within"] == pytest.approx(15 / 16)
     assert got["mae"] == pytest.approx((9 + 24) / 48)
+
+
+def test_initial_state_options_are_checked_before_any_export() -> None:
+    """`protocol` and `sampled_states`, the same on the mirror and on the host scene; seeds
+    cycle through 50 shipped states or the sampled count."""
+    for options in (LiberoMjxOptions, LiberoOptions):
+        with pytest.raises(ConfigError, match="option protocol='fresh'; valid: standard, sampled"):
+            options(protocol="fresh")
+        with pytest.raises(ConfigError, match="option sampled_states=0: must be >= 1"):
+            options(protocol="sampled", sampled_states=0)
+    assert init_state_count("standard", 7) == 50
+    assert init_state_count("sampled", 7) == 7
 
 
 def test_camera_options_are_checked_before_any_export() -> None:

@@ -4,7 +4,12 @@ from __future__ import annotations
 
 import dataclasses
 
-from openral_mjx.benchmarks.libero.host_scene import SUITES, parse_task
+from openral_mjx.benchmarks.libero.host_scene import (
+    SAMPLED_STATES,
+    SUITES,
+    check_protocol,
+    parse_task,
+)
 from openral_mjx.core.options import check
 
 
@@ -16,15 +21,21 @@ class LiberoMjxOptions:
     `image_size`: None observes no camera (one flat vector: ``state``, ``expert``); a size
     observes the host scene's dict, ``image`` (agentview) and ``wrist_image``
     (robot0_eye_in_hand) square RGB uint8 turned upright as lerobot's LIBERO env turns them,
-    beside ``state`` and ``expert`` (backend `c` only for now: MuJoCo's renderer)."""
+    beside ``state`` and ``expert`` (backend `c`: MuJoCo's renderer; `warp`: MuJoCo-Warp's).
+    `protocol` and `sampled_states` choose the initial states as on the host scene:
+    ``standard`` (LIBERO's 50 shipped ones) or ``sampled`` (LIBERO's own reset draws, numpy
+    seeded with s mod `sampled_states`)."""
 
     task: str = "libero_spatial/0"
     max_steps: int | None = None
     expert: bool = True
     image_size: int | None = None
+    protocol: str = "standard"
+    sampled_states: int = SAMPLED_STATES
 
     def __post_init__(self) -> None:
         parse_task(self.task)
+        check_protocol(self.protocol, self.sampled_states)
         if self.image_size is not None:
             check(self.image_size >= 8, f"option image_size={self.image_size}: must be >= 8")
         if self.max_steps is not None:

@@ -9,7 +9,11 @@ reproduces of LIBERO's `OffScreenRenderEnv` (robosuite 1.4):
   places by numpy's RNG and the initial states do not hold) where its reset puts them for
   that state (per-env `body_pos`/`body_quat`, `fixture_fields`), then LIBERO's 10 settle
   steps with the arm held and the gripper opening. The controller starts as robosuite's
-  `reset` leaves it (`controller`).
+  `reset` leaves it (`controller`). Option ``protocol=sampled`` (the mass-seed protocol)
+  starts seed s from LIBERO's own reset draw for numpy seed ``s mod sampled_states``
+  instead: objects in their BDDL regions, fixtures, articulated joints, drawn in LIBERO's
+  worker once per task and seed and kept in the export cache (`assets.load_sampled`), as
+  the host scene's worker draws it live.
 - **Action**: 7-D in [-1, 1], OSC_POSE deltas and the gripper, at 20 Hz over 25 physics steps
   of 2 ms, the torques recomputed every physics step (`controller`).
 - **Observation**: lerobot's LIBERO ``state``: end-effector position, its orientation as
@@ -42,7 +46,7 @@ import jax.numpy as jnp
 import mujoco
 import numpy as np
 
-from openral_mjx.benchmarks.libero.assets import TaskModel, load_task, physics_spec
+from openral_mjx.benchmarks.libero.assets import TaskModel, load_sampled, load_task, physics_spec
 from openral_mjx.benchmarks.libero.export import EXPERT_SIZE, expert_frames
 from openral_mjx.benchmarks.libero.host_scene import instruction as host_instruction
 from openral_mjx.benchmarks.libero.mirror.controller import (
@@ -100,25 +104,40 @@ def axis_angle(quat_wxyz: jax.Array) -> jax.Array:
     return jnp.where(s < 1e-8, 0.0, quat_wxyz[1:] * angle / jnp.where(s < 1e-8, 1.0, s))
 
 
-def fixture_fields(export: TaskModel, m: mujoco.MjModel) -> dict[str, jax.Array]:
+def fixture_fields(
+    export: TaskModel, m: mujoco.MjModel, ids: np.ndarray, pos: np.ndarray, quat: np.ndarray
+) -> dict[str, jax.Array]:
     """Per initial state, the model's `body_pos` and `body_quat` with LIBERO's fixtures where
-    its reset for that state puts them (`TaskExport.fixture_poses`), as per-env model fields;
-    empty where no fixture moves from one initial state to another (then the model's own
-    poses, the export's for state 0, hold for all)."""
-    a = export.arrays
-    pos, quat = a["fixture_pos"], a["fixture_quat"]
-    moved = np.flatnonzero((np.ptp(pos, axis=0).max(-1) > 0) | (np.ptp(quat, axis=0).max(-1) > 0))
-    if not moved.size:
+    its reset for that state puts them (bodies `ids` of the export's order at `pos`, `quat`:
+    (states, bodies, 3 or 4)), as per-env model fields; empty where none moves from one
+    initial state to another (then the model's own poses, the export's for state 0, hold)."""
+    moved = (np.ptp(pos, axis=0).max(-1) > 0) | (np.ptp(quat, axis=0).max(-1) > 0)
+    if not moved.any():
         return {}
     names = [str(n) for n in export.meta["body_names"]]
-    ids = np.array([m.body(names[i]).id for i in moved])
+    rows = np.array([m.body(names[i]).id for i in np.asarray(ids)[moved]])
     body_pos = np.repeat(m.body_pos[None], len(pos), axis=0)
     body_quat = np.repeat(m.body_quat[None], len(pos), axis=0)
-    body_pos[:, ids], body_quat[:, ids] = pos[:, moved], quat[:, moved]
+    body_pos[:, rows], body_quat[:, rows] = pos[:, moved], quat[:, moved]
     return {
         "body_pos": jnp.asarray(body_pos, jnp.float32),
         "body_quat": jnp.asarray(body_quat, jnp.float32),
     }
+
+
+def initial_states(
+    export: TaskModel, options: LiberoMjxOptions
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The states seeds cycle through: flattened ``[time, qpos, qvel]`` states, and the ids,
+    positions and quaternions of the bodies LIBERO's reset places per state: the 50 shipped
+    states (`standard`; every body's pose, from `TaskExport.fixture_poses`) or the mass-seed
+    protocol's draws (`sampled`; the fixtures', from `load_sampled`)."""
+    if options.protocol == "sampled":
+        drawn = load_sampled(export.task, options.sampled_states)
+        return drawn["states"], drawn["fixture_ids"], drawn["fixture_pos"], drawn["fixture_quat"]
+    a = export.arrays
+    ids = np.arange(a["fixture_pos"].shape[1])
+    return export.init_states, ids, a["fixture_pos"], a["fixture_quat"]
 
 
 def gains(model: TaskModel, ctrlrange: np.ndarray, gripper_ids: np.ndarray) -> OscGains:
@@ -227,7 +246,8 @@ class LiberoMjx(Scene):
         grip_act = np.array([m.actuator(n).id for n in meta["gripper_actuators"]])
         self._arm_act, self._grip_act = arm_act, grip_act
         self.gains = gains(t, m.actuator_ctrlrange, grip_act)
-        states = np.asarray(t.init_states, np.float64)
+        states, fixture_ids, fixture_pos, fixture_quat = initial_states(t, o)
+        states = np.asarray(states, np.float64)
         self._init_qpos = jnp.asarray(states[:, 1 : 1 + m.nq], jnp.float32)
         self._init_qvel = jnp.asarray(states[:, 1 + m.nq :], jnp.float32)
         self._goal_ori = jnp.asarray(t.arrays["goal_ori_after_reset"], jnp.float32)
@@ -244,7 +264,7 @@ class LiberoMjx(Scene):
             f32("stale_qd"),
         )
         self._stale_first = bool(meta["stale_pending"])
-        self._fixtures = fixture_fields(t, m)
+        self._fixtures = fixture_fields(t, m, fixture_ids, fixture_pos, fixture_quat)
         frames = expert_frames(t.goal)
         bodies = self.backend.quantity_spec.bodies
         self._expert = None if frames is None else [bodies.index(b) for b in frames]
@@ -299,7 +319,8 @@ class LiberoMjx(Scene):
         return self.reset_with_seed(jnp.zeros((), jnp.int32), key)
 
     def reset_with_seed(self, seed: jax.Array, key: jax.Array) -> State:
-        """LIBERO's initial state ``seed mod 50``, then its settle steps."""
+        """LIBERO's initial state ``seed mod 50`` (protocol ``sampled``: its draw for seed
+        ``seed mod sampled_states``), then its settle steps."""
         del key  # LIBERO's protocol draws nothing: the initial state is the seed's
         return self.reset_from(jnp.asarray(seed) % self.n_init_states)
 

@@ -277,6 +277,16 @@ json.dump(d, open(sys.argv[2], 'w'), indent=1)" "/tmp/libero_act_$s.json" "$out/
           --scene libero_mjx --task "$t" --backend warp --n-envs 50 --policy lerobot:/tmp/act_libero)
       done
     done ;;
+  libero-mass)  # issue 42: the mass-seed protocol (--opt protocol=sampled) on TASK, N seeds at
+                # once (default 1,024): the random-weight ACT on two IMAGE px cameras, then
+                # libero-expert on the state alone; the task's draws come with its export
+    [ -d /tmp/act_libero ] || python3 benchmarks/libero_act_policy.py --out /tmp/act_libero \
+      --size "${IMAGE:-128}" | tail -1
+    t=${TASK:-libero_object/0}; n=${N:-1024}; tag=$(echo "$t" | tr / _)
+    for policy in lerobot:/tmp/act_libero libero-expert; do
+      ev "libero_mass_${policy%%:*}_${tag}_$n" --scene libero_mjx --task "$t" --backend warp \
+        --n-envs "$n" --policy "$policy" --opt protocol=sampled "sampled_states=$n"
+    done ;;
   cluster-scaling)  # issue 39: SUITE (mt10) over Ray vs --task-processes on this machine's GPUs,
                     # then HOST_SCENE (libero) over Ray actors vs local workers up to its cores.
                     # Needs the ray extra (its wheels carried: the machine has no network) and,

@@ -41,7 +41,7 @@ from openral_mjx.report import EvalReport, save_report
 from openral_mjx.report.sweep import SweepReport, save_sweep
 from openral_mjx.runner import processes
 from openral_mjx.runner.compile_cache import default_cache_dir, enable_compilation_cache
-from openral_mjx.scenes import Scene, mirrored
+from openral_mjx.scenes import Scene, mirrored, seed_options
 from openral_mjx.scenes.factor_ranges import parse_factors
 from openral_mjx.scenes.host_scene import HostScene
 from openral_mjx.stats import compare_reports, format_breakdown, format_comparison
@@ -295,7 +295,10 @@ def show(plan: EvalPlan, written: Written) -> None:
         print(decision_summary(report, plan.baseline))
     elif plan.baseline is not None:
         rc = compare_reports(
-            plan.baseline, report, mirrored=mirrored(plan.baseline.scene, report.scene)
+            plan.baseline,
+            report,
+            mirrored=mirrored(plan.baseline.scene, report.scene),
+            seed_options=seed_options(plan.baseline.scene, report.scene),
         )
         names = (str(args.compare_with), str(plan.out))
         print(format_comparison(rc, plan.baseline, report, names))

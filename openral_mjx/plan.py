@@ -117,7 +117,7 @@ class DecideArgs:
 
 def _pilot(paths: tuple[Path, Path]) -> Pilot:
     # imported here: the scene registry loads MJX (seconds), which only --from needs
-    from openral_mjx.scenes import mirrored
+    from openral_mjx.scenes import mirrored, seed_options
 
     a, b = (load_report(p) for p in paths)
     if os.path.samefile(*paths):
@@ -125,7 +125,8 @@ def _pilot(paths: tuple[Path, Path]) -> Pilot:
             f"--from names the same file twice ({str(paths[0])!r}, {str(paths[1])!r}): give "
             "two runs"
         )
-    rc = compare_reports(a, b, mirrored=mirrored(a.scene, b.scene))
+    same = seed_options(a.scene, b.scene)
+    rc = compare_reports(a, b, mirrored=mirrored(a.scene, b.scene), seed_options=same)
     return Pilot.from_comparison(rc.comparison)
 
 

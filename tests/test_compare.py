@@ -134,6 +134,29 @@ def test_a_mirror_pairs_with_its_original_and_reports_steps_to_success(
     assert "mirror_only" not in out  # an option only one scene has is no difference
 
 
+def test_reports_of_different_initial_state_protocols_are_not_comparable(
+    monkeypatch, capsys, tmp_path, base
+):
+    """LIBERO's seeds mean the 50 shipped initial states or LIBERO's own draws (option
+    protocol): reports that ran different protocols, or different draw counts, do not pair;
+    a report that records no protocol ran the standard one."""
+    steps = [10, 0, 0, 20, 0, 0, 30, 0, 0, 0]
+    a = with_steps(variant(base, A, scene="libero", task="libero_object/0"), steps)
+    b = with_steps(variant(base, B, scene="libero_mjx", task="libero_object/0"), steps)
+    sampled = {"protocol": "sampled", "sampled_states": 1024}
+    for a_opts, b_opts, needle in (
+        ({}, sampled, "option protocol 'standard' (A) vs 'sampled' (B)"),
+        (sampled, {**sampled, "sampled_states": 64}, "option sampled_states 1024 (A) vs 64 (B)"),
+    ):
+        a2 = dataclasses.replace(a, options={**a.options, **a_opts})
+        b2 = dataclasses.replace(b, options={**b.options, **b_opts})
+        code, _, err = run_compare(monkeypatch, capsys, tmp_path, a2, b2)
+        assert code == 2 and f"not comparable: {needle}" in err, err
+    a2 = dataclasses.replace(a, options={**a.options, **sampled})
+    b2 = dataclasses.replace(b, options={**b.options, **sampled})
+    assert run_compare(monkeypatch, capsys, tmp_path, a2, b2)[0] == 0
+
+
 def test_a_mirror_without_the_original_s_reward_gets_no_reward_line(
     monkeypatch, capsys, tmp_path, base
 ):

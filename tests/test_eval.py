@@ -99,6 +99,34 @@ def test_eval_compare_with(monkeypatch, capsys, tmp_path):
     assert out.strip().endswith(f"report: {b}")
 
 
+def test_compare_with_another_initial_state_protocol_is_refused_before_running(
+    monkeypatch, capsys, tmp_path
+):
+    """A LIBERO report of the standard protocol against a mirror run of the sampled one: their
+    seeds start from different initial states, refused before anything is built."""
+    argv = ["--n-envs", "2", "--max-steps", "2", "--threads", "1", "--no-breakdown"]
+    a = tmp_path / "libero.json"
+    assert run_cli(monkeypatch, capsys, *argv, "--policy", "zero", "--out", str(a))[0] == 0
+    report = json.loads(a.read_text())
+    a.write_text(json.dumps({**report, "scene": "libero", "task": "libero_object/0"}))
+    mirror = ["--scene", "libero_mjx", "--task", "libero_object/0", "--policy", "zero"]
+    out = tmp_path / "mirror.json"
+    code, _, err = run_cli(
+        monkeypatch,
+        capsys,
+        *mirror,
+        "--opt",
+        "protocol=sampled",
+        "--compare-with",
+        str(a),
+        "--out",
+        str(out),
+    )
+    assert code == 2, err
+    assert "not comparable: option protocol 'standard'" in err and "vs 'sampled'" in err
+    assert not out.exists()
+
+
 def test_compare_with_another_scene_or_schema(monkeypatch, capsys, tmp_path):
     bad = tmp_path / "old.json"
     bad.write_text(json.dumps({"schema_version": "openral_mjx.eval_report/1"}))

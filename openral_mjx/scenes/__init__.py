@@ -38,6 +38,9 @@ class SceneEntry:
     # the scene this one mirrors seed for seed (its original benchmark run through the host
     # adapter): seed s is the same initial state on both, so their reports pair by seed
     mirrors: str | None = None
+    # the options that choose which initial state a seed starts from (LIBERO's protocol):
+    # two reports pair seed by seed only where they agree on them (`seed_options`)
+    seed_options: tuple[str, ...] = ()
     # the `warp` contact capacity per env its models need (None: `PhysicsSettings`'s), where
     # `--contacts-per-env` does not set one
     contacts_per_env: int | None = None
@@ -106,6 +109,18 @@ def mirrored(a: str, b: str) -> bool:
     if a == b or a not in SCENES or b not in SCENES:
         return False
     return SCENES.get(a).mirrors == b or SCENES.get(b).mirrors == a
+
+
+def seed_options(a: str, b: str) -> dict[str, Any]:
+    """The options of scenes `a` and `b` that choose which initial state a seed starts from
+    (`SceneEntry.seed_options`), each with its default: a report that does not record one
+    ran with the default."""
+    out: dict[str, Any] = {}
+    for name in {a, b} & set(SCENES.names()):
+        entry = SCENES.get(name)
+        defaults = {f.name: f.default for f in dataclasses.fields(entry.options_cls)}
+        out |= {key: defaults.get(key) for key in entry.seed_options}
+    return out
 
 
 def scripted_policy(name: str, policy: str) -> str:

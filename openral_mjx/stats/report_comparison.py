@@ -15,6 +15,8 @@ reports also get the mean difference of two continuous values with a t interval
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Mapping
+from typing import Any
 
 import numpy as np
 
@@ -49,13 +51,27 @@ class ReportComparison:
     reward_difference: PairedMean | None = None
 
 
-def check_comparable(a: EvalReport, b: EvalReport, mirrored: bool = False) -> None:
+def check_comparable(
+    a: EvalReport,
+    b: EvalReport,
+    mirrored: bool = False,
+    seed_options: Mapping[str, Any] | None = None,
+) -> None:
     """Raise `ConfigError` unless both reports evaluate the same scene and task (the scenes
-    may differ where `mirrored`: one mirrors the other)."""
+    may differ where `mirrored`: one mirrors the other) and agree on `seed_options`, the
+    options that choose which initial state a seed starts from (name -> the value a report
+    that does not record it ran with)."""
     for field in ("task",) if mirrored else ("scene", "task"):
         va, vb = getattr(a, field), getattr(b, field)
         if va != vb:
             raise ConfigError(f"reports are not comparable: {field} {va!r} (A) vs {vb!r} (B)")
+    for key, default in (seed_options or {}).items():
+        va, vb = a.options.get(key, default), b.options.get(key, default)
+        if va != vb:
+            raise ConfigError(
+                f"reports are not comparable: option {key} {va!r} (A) vs {vb!r} (B) starts "
+                "their seeds from different initial states"
+            )
 
 
 def _outcomes(report: EvalReport, label: str) -> dict[int, bool]:
@@ -105,13 +121,15 @@ def compare_reports(
     unpaired: bool = False,
     test: str = "auto",
     mirrored: bool = False,
+    seed_options: Mapping[str, Any] | None = None,
 ) -> ReportComparison:
     """B against A: paired on common seeds when there are any (unless `unpaired`);
-    `mirrored`: the reports' scenes differ, one mirroring the other (`check_comparable`)."""
+    `mirrored`: the reports' scenes differ, one mirroring the other; `seed_options`: the
+    options both must agree on (`check_comparable`)."""
     check_confidence(confidence)
     if test not in UNPAIRED_TESTS:
         raise unknown("unpaired test", test, UNPAIRED_TESTS)
-    check_comparable(a, b, mirrored)
+    check_comparable(a, b, mirrored, seed_options)
     notes = _notes(a, b)
     if a.scene != b.scene:
         notes.append(

@@ -139,4 +139,5 @@ SCENE = SceneEntry(
     tasks="SUITE/INDEX (INDEX from 0), e.g. libero_spatial/0",
     suite_names=tuple(SUITES),
     expert="libero-expert",
+    seed_options=("protocol", "sampled_states"),
 )

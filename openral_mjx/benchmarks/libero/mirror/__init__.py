@@ -26,6 +26,7 @@ SCENE = SceneEntry(
     suite_names=host_scene.SCENE.suite_names,
     expert="libero-expert",
     mirrors="libero",
+    seed_options=host_scene.SCENE.seed_options,
     contacts_per_env=CONTACTS_PER_ENV,
 )
 

@@ -37,6 +37,7 @@ from openral_mjx.scenes import (
     seed_options,
 )
 from openral_mjx.scenes.factor_ranges import parse_factors
+from openral_mjx.stats.report_comparison import check_seed_options
 from openral_mjx.viz import require_viz
 
 # The most episodes re-simulated for videos or sensor frames (each is a file, or a slice of
@@ -140,14 +141,8 @@ def validate(args: EvalArgs) -> EvalPlan:
                 f"reports are not comparable: scene {baseline.scene!r} ({args.compare_with}) "
                 f"vs {args.scene!r}"
             )
-        for key, default in seed_options(baseline.scene, args.scene).items():
-            theirs, ours = baseline.options.get(key, default), options.get(key, default)
-            if theirs != ours:
-                raise ConfigError(
-                    f"reports are not comparable: option {key} {theirs!r} "
-                    f"({args.compare_with}) vs {ours!r}: their seeds start from different "
-                    "initial states"
-                )
+        same = seed_options(baseline.scene, args.scene)
+        check_seed_options(baseline.options, options, same, (str(args.compare_with), "this run"))
     decide = _decide_rule(args, baseline)
     if decide is not None:
         spec = dataclasses.replace(spec, n_episodes=decide.cap)

@@ -65,12 +65,24 @@ def check_comparable(
         va, vb = getattr(a, field), getattr(b, field)
         if va != vb:
             raise ConfigError(f"reports are not comparable: {field} {va!r} (A) vs {vb!r} (B)")
-    for key, default in (seed_options or {}).items():
-        va, vb = a.options.get(key, default), b.options.get(key, default)
+    check_seed_options(a.options, b.options, seed_options or {})
+
+
+def check_seed_options(
+    a: Mapping[str, Any],
+    b: Mapping[str, Any],
+    seed_options: Mapping[str, Any],
+    labels: tuple[str, str] = ("A", "B"),
+) -> None:
+    """Raise `ConfigError` unless options `a` and `b` agree on each of `seed_options` (name ->
+    the value a run that does not record it ran with): else their seeds start from different
+    initial states."""
+    for key, default in seed_options.items():
+        va, vb = a.get(key, default), b.get(key, default)
         if va != vb:
             raise ConfigError(
-                f"reports are not comparable: option {key} {va!r} (A) vs {vb!r} (B) starts "
-                "their seeds from different initial states"
+                f"reports are not comparable: option {key} {va!r} ({labels[0]}) vs {vb!r} "
+                f"({labels[1]}): their seeds start from different initial states"
             )
 
 

@@ -30,6 +30,7 @@ import mujoco
 import numpy as np
 
 from openral_mjx.core.errors import ConfigError
+from openral_mjx.core.files import atomic_path
 from openral_mjx.host.envs import ensure_env, envs_root
 from openral_mjx.host.pool import RemoteError, Worker, WorkerFailure
 
@@ -168,8 +169,8 @@ def load_sampled(
         with task_worker(task) as (worker, log):
             while count < n:
                 stop = min(n, count + SAMPLED_BLOCK)
-                msg = {"op": "call", "method": "sampled_states", "kwargs": {}}
-                msg["kwargs"] = {"start": count, "stop": stop}
+                kwargs = {"start": count, "stop": stop}
+                msg = {"op": "call", "method": "sampled_states", "kwargs": kwargs}
                 new = worker.call(msg, TIMEOUT_S)
                 have = _grown(have, new)
                 _write_npz(path, have)
@@ -196,9 +197,8 @@ def _grown(have: dict[str, np.ndarray] | None, new: dict[str, Any]) -> dict[str,
 
 
 def _write_npz(path: Path, arrays: dict[str, np.ndarray]) -> None:
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.npz")
-    np.savez(tmp, **arrays)
-    os.replace(tmp, path)
+    with atomic_path(path) as tmp, tmp.open("wb") as f:  # a file: savez names no suffix
+        np.savez(f, **arrays)
 
 
 def bundled(path: str) -> str:

@@ -106,11 +106,31 @@ def test_unreachable_cluster_is_refused_at_once():
 
 
 def _ray(*args: str) -> None:
+    """Run the `ray` command line; a failure raises with what Ray printed."""
     ray_cli = Path(sys.executable).with_name("ray")
     command = [str(ray_cli) if ray_cli.exists() else shutil.which("ray") or "ray", *args]
-    subprocess.run(
-        command, check=True, env={**os.environ, **RAY_ENV}, capture_output=True, timeout=120
+    done = subprocess.run(
+        command, env={**os.environ, **RAY_ENV}, capture_output=True, text=True, timeout=120
     )
+    if done.returncode:
+        said = (done.stderr.strip() or done.stdout.strip()).splitlines()[-3:]
+        raise RuntimeError(f"`ray {' '.join(args)}` exited {done.returncode}: {' / '.join(said)}")
+
+
+# Ports a Ray node takes by default for its other components (client server, dashboard, its
+# agent, worker processes): a head port picked at random must not be one of them. CI's run once
+# drew 52365, the dashboard agent's, and `ray start --head` refused it.
+RAY_DEFAULT_PORTS = {6379, 8265, 10001, 52365, *range(10002, 20000)}
+
+
+def free_head_port() -> int:
+    """A port free on 127.0.0.1 that no other component of a default Ray node will take."""
+    while True:
+        with socket.socket() as s:
+            s.bind(("127.0.0.1", 0))
+            port = s.getsockname()[1]
+        if port not in RAY_DEFAULT_PORTS:
+            return port
 
 
 @pytest.fixture(scope="module")
@@ -119,9 +139,7 @@ def two_nodes():
     package on the workers' path, stopped after the module's tests."""
     require_ray()
     require_worker_envs("metaworld", module=False)  # the mirror's model files
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        port = s.getsockname()[1]
+    port = free_head_port()
     node = ["--node-ip-address", "127.0.0.1", "--num-cpus", "1", "--disable-usage-stats"]
     with pytest.MonkeyPatch.context() as mp:
         for key, value in RAY_ENV.items():

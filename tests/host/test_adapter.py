@@ -220,7 +220,7 @@ def _workers_of(marker: str) -> list[int]:
 )
 def test_ctrl_c_ends_the_run_and_its_workers(tmp_path, stop, code):
     """A run whose env hangs, interrupted (Ctrl-C) or terminated: exit code 130 or 143, one
-    line, no worker left behind."""
+    line and no traceback, no worker left behind."""
     marker = f"OPENRAL_MJX_TEST_MARK={tmp_path.name}"
     env = {**os.environ, "OPENRAL_MJX_TEST_MARK": tmp_path.name}
     argv = [
@@ -250,6 +250,7 @@ def test_ctrl_c_ends_the_run_and_its_workers(tmp_path, stop, code):
     _, err = proc.communicate(timeout=60)
     said = b"interrupted (SIGINT)" if stop == signal.SIGINT else b"terminated (SIGTERM)"
     assert proc.returncode == code and said in err, err
+    assert b"Traceback" not in err, err  # JAX's log of the ended host callback is dropped
     time.sleep(1)
     assert _workers_of(marker) == [] and not (tmp_path / "r.json").exists()
 

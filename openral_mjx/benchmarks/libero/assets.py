@@ -21,8 +21,10 @@ import functools
 import json
 import os
 import shutil
+import sys
 import tempfile
-from collections.abc import Callable, Iterator
+import time
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -95,8 +97,14 @@ def task_worker(task: str, image_size: int | None = None) -> Iterator[tuple[Work
         worker.close()
 
 
+def _say(line: str) -> None:
+    """A status line on stderr for the one-time work in LIBERO's worker (seconds to minutes)."""
+    print(f"libero_mjx: {line}", file=sys.stderr, flush=True)
+
+
 def _export(task: str) -> TaskModel:
     """Run LIBERO's task construction in a worker and cache what it returns."""
+    _say(f"exporting LIBERO task {task} in LIBERO's worker, once (~20 s; kept in {models_root()})")
     log = None
     try:
         with task_worker(task) as (worker, log):
@@ -149,22 +157,22 @@ def _read_sampled(path: Path) -> dict[str, np.ndarray] | None:
     return arrays if int(arrays.get("format", -1)) == FORMAT else None
 
 
-def load_sampled(
-    task: str, n: int, on_block: Callable[[int, int], None] | None = None
-) -> dict[str, np.ndarray]:
+def load_sampled(task: str, n: int) -> dict[str, np.ndarray]:
     """The mass-seed protocol's first `n` initial states of task ``suite/index``: per seed
     the flattened ``[time, qpos, qvel]`` state (``states``) and the poses of the bodies
     LIBERO's reset places without a joint (``fixture_ids`` in the export's body order,
     ``fixture_pos``, ``fixture_quat``), as `TaskExport.sampled_states` draws them. Kept in the
-    export cache (``sampled.npz``) and extended in LIBERO's worker where it holds fewer;
-    `on_block(done, n)` after each block of `SAMPLED_BLOCK` seeds drawn."""
+    export cache (``sampled.npz``) and extended in LIBERO's worker where it holds fewer, a
+    status line after each block of `SAMPLED_BLOCK` seeds."""
     load_task(task)  # the task's own export first: its format marks this file's too
     path = _task_dir(task) / "sampled.npz"
     have = _read_sampled(path)
     count = 0 if have is None else len(have["states"])
     if count >= n:
         return {**have, **{k: have[k][:n] for k in SAMPLED_PER_SEED}}
+    _say(f"drawing {task}'s initial states {count}..{n - 1} by LIBERO's reset, once")
     log = None
+    start = time.perf_counter()
     try:
         with task_worker(task) as (worker, log):
             while count < n:
@@ -175,8 +183,7 @@ def load_sampled(
                 have = _grown(have, new)
                 _write_npz(path, have)
                 count = stop
-                if on_block is not None:
-                    on_block(count, n)
+                _say(f"  {count}/{n} drawn ({time.perf_counter() - start:.0f} s)")
     except (RemoteError, WorkerFailure) as e:
         raise ConfigError(
             f"drawing LIBERO task {task!r}'s initial states failed: {e} (log: {log})"

@@ -277,15 +277,28 @@ json.dump(d, open(sys.argv[2], 'w'), indent=1)" "/tmp/libero_act_$s.json" "$out/
           --scene libero_mjx --task "$t" --backend warp --n-envs 50 --policy lerobot:/tmp/act_libero)
       done
     done ;;
-  libero-mass)  # issue 42: the mass-seed protocol (--opt protocol=sampled) on TASK, N seeds at
-                # once (default 1,024): the random-weight ACT on two IMAGE px cameras, then
-                # libero-expert on the state alone; the task's draws come with its export
-    [ -d /tmp/act_libero ] || python3 benchmarks/libero_act_policy.py --out /tmp/act_libero \
-      --size "${IMAGE:-128}" | tail -1
-    t=${TASK:-libero_object/0}; n=${N:-1024}; tag=$(echo "$t" | tr / _)
-    for policy in lerobot:/tmp/act_libero libero-expert; do
-      ev "libero_mass_${policy%%:*}_${tag}_$n" --scene libero_mjx --task "$t" --backend warp \
-        --n-envs "$n" --policy "$policy" --opt protocol=sampled "sampled_states=$n"
+  libero-mass)  # issue 42: the mass-seed protocol (--opt protocol=sampled) on TASKS (default
+                # libero_object/0), N seeds at once (default 1,024), per POLICIES (default
+                # "act expert"): act, the random-weight ACT on two IMAGE px cameras; mlp, a
+                # random-weight JAX MLP on the 8-D state; expert, libero-expert on the state.
+                # Each task's draws come with its export
+    n=${N:-1024}
+    for t in ${TASKS:-${TASK:-libero_object/0}}; do
+      tag=$(echo "$t" | tr / _)
+      for p in ${POLICIES:-act expert}; do
+        case $p in
+          act) [ -d /tmp/act_libero ] || python3 benchmarks/libero_act_policy.py \
+                 --out /tmp/act_libero --size "${IMAGE:-128}" | tail -1
+               policy=lerobot:/tmp/act_libero; opts=() ;;
+          mlp) [ -d /tmp/mlp_libero ] || python3 benchmarks/libero_mlp_policy.py \
+                 --out /tmp/mlp_libero | tail -1
+               policy=mlp:/tmp/mlp_libero; opts=(expert=false) ;;
+          expert) policy=libero-expert; opts=() ;;
+          *) echo "unknown policy $p (act, mlp, expert)"; exit 2 ;;
+        esac
+        ev "libero_mass_${p}_${tag}_$n" --scene libero_mjx --task "$t" --backend warp \
+          --n-envs "$n" --policy "$policy" --opt protocol=sampled "sampled_states=$n" "${opts[@]}"
+      done
     done ;;
   cluster-scaling)  # issue 39: SUITE (mt10) over Ray vs --task-processes on this machine's GPUs,
                     # then HOST_SCENE (libero) over Ray actors vs local workers up to its cores.

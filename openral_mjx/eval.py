@@ -24,7 +24,7 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, T
 
 from openral_mjx.cli.common import guarded, parse, stderr
 from openral_mjx.cli.eval_args import EvalArgs
-from openral_mjx.cli.eval_plan import EvalPlan, check_distributed, validate
+from openral_mjx.cli.eval_plan import EvalPlan, check_distributed, validate, writes_media
 from openral_mjx.cli.eval_text import decision_summary, listing, sequential_summary, warnings_line
 from openral_mjx.core.errors import ConfigError
 from openral_mjx.core.interrupts import EXIT_CODES, signals_raise
@@ -197,6 +197,7 @@ def execute(
             on_chunk=on_chunk,
             resume=plan.resume if isinstance(plan.resume, EvalReport) else None,
             decide=plan.decide,
+            keep_finished=not writes_media(args),
         )
     owned.enter_context(evaluation)
     return evaluation

@@ -205,16 +205,16 @@ def _decide_rule(args: EvalArgs, baseline: EvalReport | None) -> PairedRule | No
     )
 
 
+def writes_media(args: EvalArgs) -> bool:
+    """Whether the run writes videos, frames or plots besides its report: interrupted, such a
+    run keeps nothing, since `--resume` writes the report only."""
+    return bool(args.video or args.video_failures or args.frames or args.plots)
+
+
 def _resume_from(args: EvalArgs, command: str) -> EvalReport | SweepReport:
     """The partial report at --out that --resume picks up, checked to be one this very
     command wrote (same arguments, so the same seeds, options and grid)."""
-    resumable = (args.sweep, args.suite, args.target_halfwidth, args.decide or None)
-    if all(x is None for x in resumable):
-        raise ConfigError(
-            "--resume finishes an interrupted --sweep, --suite, --target-halfwidth or --decide "
-            "run: give its arguments"
-        )
-    if args.video or args.video_failures or args.frames or args.plots:
+    if writes_media(args):
         raise ConfigError("--resume writes the report only: drop --video/--frames/--plots")
     if args.out is None:
         raise ConfigError("--resume needs --out: the partial report to pick up from")

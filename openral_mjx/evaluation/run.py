@@ -199,6 +199,7 @@ def evaluate_spec(
     randomize: Sequence[str] = (),
     resume: EvalReport | None = None,
     decide: PairedRule | None = None,
+    keep_finished: bool = False,
 ) -> Evaluation:
     """`run_evaluation` for a checked `RunSpec`: `scene` (a name: built from `options` as the
     spec says, and closed with the `Evaluation`) run under `policy`.
@@ -213,7 +214,11 @@ def evaluate_spec(
     look that decides B against an earlier report; the report's `decision` says how. Stopped
     by a signal after a look, it raises `Interrupted` as a sequential run does (its `decision`
     "undecided", with the looks so far), and resumes the same way: the resumed run takes the
-    same looks and reaches the same decision as an uninterrupted one."""
+    same looks and reaches the same decision as an uninterrupted one.
+
+    `keep_finished`: a fixed-size run does the same, its prefix of seeds kept up to the last
+    `n_episodes`-seed chunk (`n_envs` seeds each) that finished, and resumed from there to the
+    uninterrupted run's episodes."""
     rule, n_episodes = spec.stopping_rule(), spec.episodes
     if decide is not None and (rule is not None or n_episodes != decide.cap):
         raise ConfigError(
@@ -221,7 +226,7 @@ def evaluate_spec(
             "cap, and no target_halfwidth"
         )
     seed, step_rewards = spec.seed, spec.step_rewards
-    earlier = _resumed(resume, rule, decide)
+    earlier = _resumed(resume, rule, decide, keep_finished)
     owned = contextlib.ExitStack()
     with owned, count_warnings() as warned:  # on an error, close what this call built
         if isinstance(scene, str):
@@ -251,13 +256,14 @@ def evaluate_spec(
 
         def until(arrays: dict[str, Any]) -> bool:
             """The stopping rule over every seed so far (a resumed run's earlier ones first),
-            keeping the finished prefix for a partial report."""
+            keeping the finished prefix for a partial report (a fixed-size run: only that)."""
             seen["arrays"] = arrays
             so_far = {"success": np.concatenate([before, arrays["success"]])}
             if decide is not None:
                 return decide(so_far)
-            assert rule is not None
-            return rule(so_far)
+            return rule is not None and rule(so_far)
+
+        stops = rule is not None or decide is not None
 
         params, _ = pol.init(jax.random.PRNGKey(seed), scene.observation_spec)
         assemble = functools.partial(
@@ -287,20 +293,19 @@ def evaluate_spec(
                 n_envs=spec.n_envs,
                 max_steps=steps,
                 on_chunk=on_chunk,
-                until=None if rule is None and decide is None else until,
+                until=until if stops or keep_finished else None,
                 record=("rewards",) if step_rewards else (),
                 batching=batching,
                 refill_every=refill_every,
             )
         except BaseException as e:
             signal = stop_signal(e)
-            if signal is None or (rule is None and decide is None) or not (seen or earlier):
+            if signal is None or not (stops or keep_finished) or not (seen or earlier):
                 raise
             arrays = seen.get("arrays", {"success": np.zeros(0, bool)})
             n = len(arrays["success"])
             stopper = rule if rule is not None else decide
-            assert stopper is not None
-            chunk = stopper.design.looks[0]
+            chunk = spec.n_envs if stopper is None else stopper.design.looks[0]
             looks = -(-n // chunk)
             run_s = time.perf_counter() - start  # compiling included: no chunk timings here
             timing = RunTiming(0.0, run_s, (run_s / max(looks, 1),) * looks, steps, chunk)
@@ -322,20 +327,27 @@ def evaluate_spec(
 
 
 def _resumed(
-    resume: EvalReport | None, rule: SequentialRule | None, decide: PairedRule | None
+    resume: EvalReport | None,
+    rule: SequentialRule | None,
+    decide: PairedRule | None,
+    keep_finished: bool = False,
 ) -> list[EpisodeResult]:
-    """The episodes of the partial sequential or paired-decision report a run resumes (none
-    without one), its design fixed at the chunk that report's looks came after."""
+    """The episodes of the partial sequential, paired-decision or (`keep_finished`) fixed-size
+    report a run resumes (none without one); a sequential design is fixed at the chunk that
+    report's looks came after."""
     if resume is None:
         return []
+    fixed = resume.sequential is None and resume.decision is None
+    if rule is None and decide is None and keep_finished and fixed and resume.partial:
+        return list(resume.episodes)
     if decide is not None and resume.decision is not None and resume.partial is not None:
         success = np.array([e.success for e in resume.episodes], bool)
         decide.resume(resume.decision, success)
         return list(resume.episodes)
     if rule is None or resume.sequential is None or resume.partial is None:
         raise ConfigError(
-            "only a partial report of a sequential run (target_halfwidth) or of a paired "
-            "decision (its report's `decision`) resumes"
+            "only a partial report of a sequential run (target_halfwidth), of a paired "
+            "decision (its report's `decision`) or of a fixed-size run of the same kind resumes"
         )
     rule.fix(resume.sequential.chunk)
     return list(resume.episodes)

@@ -41,3 +41,8 @@ def stop_at(monkeypatch, name, keyword, at, how):
         return real(*args, **{**kwargs, keyword: hook})
 
     monkeypatch.setattr(eval_module, name, wrapped)
+
+
+def per_seed(report) -> list[tuple]:
+    """Each episode's seed, outcome, length and return: what a resumed run must give again."""
+    return [(e.metadata["seed"], e.success, e.steps, e.total_reward) for e in report.episodes]

@@ -4,7 +4,7 @@ seeds it ran (recomputed here from the report's episodes), over a contiguous pre
 
 import numpy as np
 import pytest
-from cli_runs import run_cli, stop_at
+from cli_runs import per_seed, run_cli, stop_at
 from report_variants import variant
 
 from openral_mjx.core.errors import ConfigError
@@ -147,11 +147,7 @@ def test_interrupted_decide_resumes_to_the_uninterrupted_decision(
     assert code == 0, err
     resumed, expected = load_report(part), load_report(whole)
     assert resumed.partial is None and resumed.n_episodes == expected.n_episodes == 32
-    per_seed = [
-        [(e.metadata["seed"], e.success, e.steps, e.total_reward) for e in r.episodes]
-        for r in (resumed, expected)
-    ]
-    assert per_seed[0] == per_seed[1]
+    assert per_seed(resumed) == per_seed(expected)
     assert resumed.decision is not None and expected.decision is not None
     assert resumed.decision.decision == "worse"
     assert resumed.decision == expected.decision

@@ -18,7 +18,7 @@ import time
 from pathlib import Path
 
 import pytest
-from cli_runs import run_cli, stop_at
+from cli_runs import per_seed, run_cli, stop_at
 
 from openral_mjx import eval as eval_cli
 from openral_mjx.cli import eval_plan
@@ -123,11 +123,7 @@ def test_interrupted_suite_resumes_to_the_uninterrupted_result(monkeypatch, caps
     assert run_cli(monkeypatch, capsys, *argv, "--out", str(part), "--resume")[0] == 0
     resumed, expected = load_report(part), load_report(whole)
     assert resumed.partial is None
-    per_seed = [
-        [(e.metadata["seed"], e.success, e.steps, e.total_reward) for e in r.episodes]
-        for r in (resumed, expected)
-    ]
-    assert per_seed[0] == per_seed[1] and len(per_seed[0]) == 16
+    assert per_seed(resumed) == per_seed(expected) and len(per_seed(expected)) == 16
     assert [(r.n_episodes, r.successes) for r in resumed.per_task] == [
         (r.n_episodes, r.successes) for r in expected.per_task
     ]
@@ -155,11 +151,7 @@ def test_interrupted_sequential_run_keeps_a_prefix_and_resumes(monkeypatch, caps
     assert run_cli(monkeypatch, capsys, *argv, "--out", str(part), "--resume")[0] == 0
     resumed, expected = load_report(part), load_report(whole)
     assert resumed.partial is None and resumed.n_episodes == expected.n_episodes == 8
-    per_seed = [
-        [(e.metadata["seed"], e.success, e.steps, e.total_reward) for e in r.episodes]
-        for r in (resumed, expected)
-    ]
-    assert per_seed[0] == per_seed[1]
+    assert per_seed(resumed) == per_seed(expected)
     assert (resumed.ci_low, resumed.ci_high, resumed.sequential.looks) == (
         expected.ci_low,
         expected.ci_high,
@@ -190,11 +182,7 @@ def test_interrupted_fixed_run_keeps_its_finished_chunks_and_resumes(monkeypatch
     assert run_cli(monkeypatch, capsys, *argv, "--out", str(part), "--resume")[0] == 0
     resumed, expected = load_report(part), load_report(whole)
     assert resumed.partial is None and resumed.n_episodes == expected.n_episodes == 12
-    per_seed = [
-        [(e.metadata["seed"], e.success, e.steps, e.total_reward) for e in r.episodes]
-        for r in (resumed, expected)
-    ]
-    assert per_seed[0] == per_seed[1]
+    assert per_seed(resumed) == per_seed(expected)
     assert (resumed.ci_low, resumed.ci_high) == (expected.ci_low, expected.ci_high)
 
 

@@ -216,9 +216,8 @@ def evaluate_spec(
     "undecided", with the looks so far), and resumes the same way: the resumed run takes the
     same looks and reaches the same decision as an uninterrupted one.
 
-    `keep_finished`: a fixed-size run does the same, its prefix of seeds kept up to the last
-    `n_episodes`-seed chunk (`n_envs` seeds each) that finished, and resumed from there to the
-    uninterrupted run's episodes."""
+    `keep_finished`: a fixed-size run does the same, keeping its seeds up to the last chunk
+    of `n_envs` that finished, and resumes from there to the uninterrupted run's episodes."""
     rule, n_episodes = spec.stopping_rule(), spec.episodes
     if decide is not None and (rule is not None or n_episodes != decide.cap):
         raise ConfigError(

@@ -7,8 +7,9 @@ set -e
 export PYTHONPATH=/tmp/site:$PWD PYTHONUNBUFFERED=1
 # .gpu may come split over calls (.gpu, .gpu2; .gpu3: brax for finetune; .gpulr: lerobot 0.6.1
 # and the small packages it imports that the image lacks; .gpucv: opencv-python-headless, which
-# lerobot imports at start) to fit beside the rest. Fetch the last two with
-# benchmarks/lerobot_wheels.sh.
+# lerobot imports at start; .gpust: pydantic, rich and flatbuffers, which the evaluator imports)
+# to fit beside the rest. Fetch .gpulr and .gpucv with benchmarks/lerobot_wheels.sh, .gpust
+# with benchmarks/evaluator_wheels.sh.
 for d in .gpu .gpu2 .gpu3 .gpulr .gpucv .gpust; do
   if [ -d "$d" ] && [ ! -f "/tmp/site/$d-done" ]; then
     # each set to its own folder, then merged: pip --target skips a package folder that is

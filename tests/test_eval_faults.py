@@ -89,6 +89,7 @@ def test_sigterm_keeps_the_finished_point_and_resume_checks_the_command(
     assert code == 2 and err == "error: --resume needs --out: the partial report to pick up from\n"
     code, _, err = run_cli(monkeypatch, capsys, *COMMON, "--out", str(part), "--resume")
     assert code == 2 and err.count("\n") == 1 and str(part) in err  # a sweep's, not a run's
+    assert "schema 'openral_mjx.sweep/" in err and "valid: openral_mjx.eval_report/" in err
     complete = tmp_path / "complete.json"
     save_sweep(dataclasses.replace(load_sweep(part), partial=None), complete)
     code, _, err = run_cli(monkeypatch, capsys, *SWEEP, "--out", str(complete), "--resume")

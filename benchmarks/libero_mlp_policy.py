@@ -18,9 +18,9 @@ from pathlib import Path
 
 import jax
 
+from openral_mjx.benchmarks.libero.mirror.scene import STATE_SIZE
 from openral_mjx.policies.mlp import MlpConfig, init_params, save_mlp
 
-STATE_SIZE = 8  # end-effector position, axis-angle, two finger positions
 ACTION_SIZE = 7  # OSC pose delta and the gripper, each in [-1, 1]
 
 

@@ -43,8 +43,34 @@ def matmul(a: jax.Array, b: jax.Array) -> jax.Array:
     )
 
 
+def mm(a: jax.Array, b: jax.Array) -> jax.Array:
+    """(..., m, k) @ (..., k, n), the leading axes broadcast: `matmul` for stacks of
+    matrices, one broadcast multiply-add per k."""
+    out = a[..., :, 0:1] * b[..., 0:1, :]
+    for i in range(1, a.shape[-1]):
+        out = out + a[..., :, i : i + 1] * b[..., i : i + 1, :]
+    return out
+
+
+def mv(a: jax.Array, x: jax.Array) -> jax.Array:
+    """(..., m, k) @ (..., k), the leading axes broadcast."""
+    out = a[..., 0] * x[..., None, 0]
+    for i in range(1, a.shape[-1]):
+        out = out + a[..., i] * x[..., None, i]
+    return out
+
+
+def total(x: jax.Array) -> jax.Array:
+    """The sum over the first axis."""
+    out = x[0]
+    for i in range(1, x.shape[0]):
+        out = out + x[i]
+    return out
+
+
 def solve_spd(a: jax.Array, b: jax.Array) -> jax.Array:
-    """Solve `a x = b` for a small symmetric positive-definite `a` (unrolled Cholesky)."""
+    """Solve `a x = b` for a small symmetric positive-definite `a` (unrolled Cholesky); `b`
+    (n,) or (n, r), so ``solve_spd(a, eye(n))`` is the inverse."""
     n = a.shape[0]
     chol = [[None] * n for _ in range(n)]
     for j in range(n):

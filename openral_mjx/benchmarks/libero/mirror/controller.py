@@ -29,6 +29,7 @@ import mujoco
 import numpy as np
 from flax import struct
 
+from openral_mjx.core import fixed_order as fo
 from openral_mjx.core.rotations import quat_to_mat_np
 
 NULLSPACE_KP = 10.0  # robosuite's `nullspace_torques` gain
@@ -177,22 +178,22 @@ class RobotDynamics:
         turn = jnp.where(hinge[..., None], turn, jnp.eye(3))
         shift = jnp.where(
             hinge,
-            self._anchor - jnp.einsum("kij,kj->ki", turn, self._anchor),
+            self._anchor - fo.mv(turn, self._anchor),
             self._axis * dq[:, None],
         )
         rel_rot, rel_pos = self._rel_rot, self._rel_pos
-        local_rot = rel_rot @ turn
-        local_pos = rel_pos + jnp.einsum("kij,kj->ki", rel_rot, shift)
+        local_rot = fo.mm(rel_rot, turn)
+        local_pos = rel_pos + fo.mv(rel_rot, shift)
         rots: list[jax.Array] = []
         poss: list[jax.Array] = []
         for k, parent in enumerate(self._parent):
             r0 = rots[parent] if parent >= 0 else jnp.eye(3)
             p0 = poss[parent] if parent >= 0 else jnp.zeros(3)
-            rots.append(r0 @ local_rot[k])
-            poss.append(p0 + r0 @ local_pos[k])
+            rots.append(fo.mm(r0, local_rot[k]))
+            poss.append(p0 + fo.mv(r0, local_pos[k]))
         rot, pos = jnp.stack(rots), jnp.stack(poss)
-        axes = jnp.einsum("kij,kj->ki", rot, self._axis)  # a turn keeps its own axis
-        return rot, pos, axes, pos + jnp.einsum("kij,kj->ki", rot, self._anchor)
+        axes = fo.mv(rot, self._axis)  # a turn keeps its own axis
+        return rot, pos, axes, pos + fo.mv(rot, self._anchor)
 
     def _jacobians(
         self, points: jax.Array, frames: np.ndarray, axes: jax.Array, anchors: jax.Array
@@ -210,13 +211,13 @@ class RobotDynamics:
     def _mass_matrix(self, rots: jax.Array, poss: jax.Array, axes: jax.Array, anchors: jax.Array):
         """The joint-space mass matrix (nv, nv), and the moving frames' world centres of mass
         (K, 3) and inertias about them (K, 3, 3)."""
-        com = poss + jnp.einsum("kij,kj->ki", rots, self._com)
-        inertia = rots @ self._inertia @ jnp.swapaxes(rots, 1, 2)
+        com = poss + fo.mv(rots, self._com)
+        inertia = fo.mm(fo.mm(rots, self._inertia), jnp.swapaxes(rots, 1, 2))
         jac = self._jacobians(com, np.arange(len(self._parent)), axes, anchors)
         lin, ang = jac[:, :3], jac[:, 3:]
-        mass = jnp.einsum("k,kia,kib->ab", self._mass, lin, lin)
-        mass = mass + jnp.einsum("kia,kij,kjb->ab", ang, inertia, ang)
-        return mass + jnp.diag(self._armature), com, inertia
+        shares = self._mass[:, None, None] * fo.mm(jnp.swapaxes(lin, 1, 2), lin)
+        shares = shares + fo.mm(jnp.swapaxes(ang, 1, 2), fo.mm(inertia, ang))
+        return fo.total(shares) + jnp.diag(self._armature), com, inertia
 
     def _bias(
         self, qd: jax.Array, axes: jax.Array, anchors: jax.Array, com: jax.Array, inertia: jax.Array
@@ -227,22 +228,19 @@ class RobotDynamics:
         sum of its ancestors' joint motions ``S_j qd_j``; its acceleration, gravity's (as the
         base accelerating upward) plus each ancestor's ``v_j x S_j qd_j``; the joints take the
         forces of the frames they carry."""
-        hinge = jnp.asarray(self._hinge)[:, None]
-        motion = (
-            jnp.where(  # S_k: a hinge turns about its axis through its anchor
-                hinge,
-                jnp.concatenate([axes, jnp.cross(anchors, axes)], -1),
-                jnp.concatenate([jnp.zeros_like(axes), axes], -1),
-            )
-            * qd[:, None]
+        unit = jnp.where(  # S_k: a hinge turns about its axis through its anchor
+            jnp.asarray(self._hinge)[:, None],
+            jnp.concatenate([axes, jnp.cross(anchors, axes)], -1),
+            jnp.concatenate([jnp.zeros_like(axes), axes], -1),
         )
+        motion = unit * qd[:, None]
         ancestors = jnp.asarray(self._ancestors, jnp.float32)  # [k, j]: j moves k
-        vel = ancestors @ motion
+        vel = fo.mm(ancestors, motion)
         w, v = vel[:, :3], vel[:, 3:]
         m_w, m_v = motion[:, :3], motion[:, 3:]
         cross = jnp.concatenate([jnp.cross(w, m_w), jnp.cross(v, m_w) + jnp.cross(w, m_v)], -1)
         base = jnp.concatenate([jnp.zeros(3), -jnp.asarray(self._gravity)])
-        acc = base + ancestors @ cross
+        acc = base + fo.mm(ancestors, cross)
         mass = jnp.asarray(self._mass)[:, None]
 
         def inertia_times(x: jax.Array) -> jax.Array:
@@ -250,7 +248,7 @@ class RobotDynamics:
             xw, xv = x[:, :3], x[:, 3:]
             v_com = xv + jnp.cross(xw, com)  # the linear part at the centre of mass
             force = mass * v_com
-            moment = jnp.einsum("kij,kj->ki", inertia, xw) + jnp.cross(com, force)
+            moment = fo.mv(inertia, xw) + jnp.cross(com, force)
             return jnp.concatenate([moment, force], -1)
 
         momentum = inertia_times(vel)
@@ -258,19 +256,13 @@ class RobotDynamics:
         force = inertia_times(acc) + jnp.concatenate(
             [jnp.cross(w, h_w) + jnp.cross(v, h_v), jnp.cross(w, h_v)], -1
         )
-        carried = ancestors.T @ force
-        unit = jnp.where(
-            hinge,
-            jnp.concatenate([axes, jnp.cross(anchors, axes)], -1),
-            jnp.concatenate([jnp.zeros_like(axes), axes], -1),
-        )
-        return jnp.sum(unit * carried, -1)
+        return fo.dot(unit, fo.mm(ancestors.T, force))
 
     def __call__(self, qpos: jax.Array, qvel: jax.Array) -> Dynamics:
         rots, poss, axes, anchors = self._frames(qpos)
         k = self._site_frame
-        site_pos = poss[k] + rots[k] @ self._site_pos
-        site_mat = rots[k] @ self._site_rot
+        site_pos = poss[k] + fo.mv(rots[k], self._site_pos)
+        site_mat = fo.mm(rots[k], self._site_rot)
         jac = self._jacobians(site_pos[None], np.array([k]), axes, anchors)[0]
         mass, com, inertia = self._mass_matrix(rots, poss, axes, anchors)
         tau = self._bias(qvel[self._dof], axes, anchors, com, inertia)
@@ -299,17 +291,17 @@ class OscGains:
 
 def _rotation(axis_angle: jax.Array) -> jax.Array:
     """Rotation matrix of an axis-angle vector (the identity at zero)."""
-    angle = jnp.linalg.norm(axis_angle)
+    angle = fo.norm(axis_angle)
     safe = jnp.where(angle > 0, angle, 1.0)
     k = axis_angle / safe
     kx = jnp.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
-    r = jnp.eye(3) + jnp.sin(angle) * kx + (1.0 - jnp.cos(angle)) * kx @ kx
+    r = jnp.eye(3) + jnp.sin(angle) * kx + (1.0 - jnp.cos(angle)) * fo.mm(kx, kx)
     return jnp.where(angle > 0, r, jnp.eye(3))
 
 
 def orientation_error(desired: jax.Array, current: jax.Array) -> jax.Array:
     """robosuite's `orientation_error`: half the sum of the column cross products."""
-    return 0.5 * jnp.sum(jnp.cross(current.T, desired.T), axis=0)
+    return 0.5 * fo.total(jnp.cross(current.T, desired.T))
 
 
 def set_goal(g: OscGains, c: ControllerState, action: jax.Array, dyn: Dynamics) -> ControllerState:
@@ -318,7 +310,7 @@ def set_goal(g: OscGains, c: ControllerState, action: jax.Array, dyn: Dynamics) 
     scale = (g.output_max - g.output_min) / (g.input_max - g.input_min)
     delta = (a - (g.input_max + g.input_min) / 2) * scale + (g.output_max + g.output_min) / 2
     rotates = jnp.any(delta[3:] != 0)
-    goal_ori = jnp.where(rotates, _rotation(delta[3:]) @ dyn.ee_mat, c.goal_ori)
+    goal_ori = jnp.where(rotates, fo.mm(_rotation(delta[3:]), dyn.ee_mat), c.goal_ori)
     return c.replace(goal_pos=dyn.ee_pos + delta[:3], goal_ori=goal_ori)
 
 
@@ -326,22 +318,29 @@ def arm_torques(
     g: OscGains, c: ControllerState, dyn: Dynamics, q: jax.Array, qd: jax.Array
 ) -> jax.Array:
     """robosuite's `run_controller` (decoupled OSC) and the robot's torque clip; `q`, `qd`:
-    the arm's joint positions and velocities."""
-    vel = dyn.jac @ qd
+    the arm's joint positions and velocities.
+
+    robosuite inverts the operational-space matrices ``J M^-1 J^T`` with `pinv`; with the
+    Jacobian of full rank they are symmetric positive definite, and their inverse is the
+    pseudo-inverse. All products here are summed in a fixed order (`fixed_order`), so a seed's
+    torques do not depend on the batch it runs in."""
+    jac, jac_t = dyn.jac, dyn.jac.T
+    vel = fo.mv(jac, qd)
     force = g.kp[:3] * (c.goal_pos - dyn.ee_pos) - g.kd[:3] * vel[:3]
     torque = g.kp[3:] * orientation_error(c.goal_ori, dyn.ee_mat) - g.kd[3:] * vel[3:]
-    m_inv = jnp.linalg.inv(dyn.mass)
-    jp, jr = dyn.jac[:3], dyn.jac[3:]
-    lam_full = jnp.linalg.pinv(dyn.jac @ m_inv @ dyn.jac.T)
-    lam_pos = jnp.linalg.pinv(jp @ m_inv @ jp.T)
-    lam_ori = jnp.linalg.pinv(jr @ m_inv @ jr.T)
-    wrench = jnp.concatenate([lam_pos @ force, lam_ori @ torque])
-    tau = dyn.jac.T @ wrench + dyn.bias
-    jbar = m_inv @ dyn.jac.T @ lam_full
-    nullspace = jnp.eye(q.shape[0]) - jbar @ dyn.jac
+    m_inv = fo.solve_spd(dyn.mass, jnp.eye(q.shape[0]))
+    inverse = lambda a: fo.solve_spd(a, jnp.eye(a.shape[0]))  # noqa: E731
+    lam_full = inverse(fo.mm(fo.mm(jac, m_inv), jac_t))
+    jp, jr = jac[:3], jac[3:]
+    lam_pos = inverse(fo.mm(fo.mm(jp, m_inv), jp.T))
+    lam_ori = inverse(fo.mm(fo.mm(jr, m_inv), jr.T))
+    wrench = jnp.concatenate([fo.mv(lam_pos, force), fo.mv(lam_ori, torque)])
+    tau = fo.mv(jac_t, wrench) + dyn.bias
+    jbar = fo.mm(fo.mm(m_inv, jac_t), lam_full)
+    nullspace = jnp.eye(q.shape[0]) - fo.mm(jbar, jac)
     kv = 2.0 * np.sqrt(NULLSPACE_KP)
-    pose = dyn.mass @ (NULLSPACE_KP * (g.nullspace_pose - q) - kv * qd)
-    tau = tau + nullspace.T @ pose
+    pose = fo.mv(dyn.mass, NULLSPACE_KP * (g.nullspace_pose - q) - kv * qd)
+    tau = tau + fo.mv(nullspace.T, pose)
     return jnp.clip(tau, g.torque_low, g.torque_high)
 
 

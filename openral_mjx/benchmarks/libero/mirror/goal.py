@@ -28,6 +28,7 @@ import jax.numpy as jnp
 import mujoco
 import numpy as np
 
+from openral_mjx.core import fixed_order as fo
 from openral_mjx.core.rotations import quat_to_mat
 from openral_mjx.physics import Quantities
 
@@ -73,8 +74,8 @@ class Goal:
     def _site(self, q: Quantities, offset: int, atom: dict[str, Any]) -> tuple:
         i = offset + self.bodies.index(atom["site_body"])
         rot = quat_to_mat(q.body_quat[i])
-        pos = q.body_pos[i] + rot @ jnp.asarray(atom["site_pos"], jnp.float32)
-        mat = rot @ quat_to_mat(jnp.asarray(atom["site_quat"], jnp.float32))
+        pos = q.body_pos[i] + fo.mv(rot, jnp.asarray(atom["site_pos"], jnp.float32))
+        mat = fo.mm(rot, quat_to_mat(jnp.asarray(atom["site_quat"], jnp.float32)))
         return pos, mat, jnp.asarray(atom["size"], jnp.float32)
 
     def _atom(self, atom: dict[str, Any], q: Quantities, offset: int) -> jax.Array:
@@ -83,18 +84,18 @@ class Goal:
             return jnp.ones((), bool)
         if kind == "on_object":
             a, b = self._pos(q, offset, atom["obj"]), self._pos(q, offset, atom["target"])
-            near = jnp.linalg.norm(b[:2] - a[:2]) < 0.03
+            near = fo.norm(b[:2] - a[:2]) < 0.03
             return (b[2] <= a[2]) & self._touching(q, atom) & near
         if kind == "on_site":
             pos, mat, size = self._site(q, offset, atom)
-            delta = mat @ (self._pos(q, offset, atom["obj"]) - pos)
+            delta = fo.mv(mat, self._pos(q, offset, atom["obj"]) - pos)
             above = (size[2] - 0.005 < delta[2]) & (delta[2] < size[2] + 0.10)
             inside = jnp.all(jnp.abs(delta[:2]) < size[:2])
             touching = self._touching(q, atom) if atom["contact"] else jnp.ones((), bool)
             return above & inside & touching
         if kind == "in_site":
             pos, mat, size = self._site(q, offset, atom)
-            half = jnp.abs(mat @ size)
+            half = jnp.abs(fo.mv(mat, size))
             low = (pos - half).at[2].add(-0.01)
             obj = self._pos(q, offset, atom["obj"])
             return jnp.all(obj > low) & jnp.all(obj < pos + half)

@@ -208,7 +208,9 @@ class RobotDynamics:
         jac = jnp.zeros((points.shape[0], 6, self.model.nv))
         return jac.at[:, :, self._dof].set(jnp.swapaxes(cols, 1, 2))
 
-    def _mass_matrix(self, rots: jax.Array, poss: jax.Array, axes: jax.Array, anchors: jax.Array):
+    def _mass_matrix(
+        self, rots: jax.Array, poss: jax.Array, axes: jax.Array, anchors: jax.Array
+    ) -> tuple[jax.Array, jax.Array, jax.Array]:
         """The joint-space mass matrix (nv, nv), and the moving frames' world centres of mass
         (K, 3) and inertias about them (K, 3, 3)."""
         com = poss + fo.mv(rots, self._com)

@@ -5,7 +5,9 @@
 set -uo pipefail
 out=${OUT:-results/gpu}; mkdir -p "$out"
 TIMEFORMAT='wall %R s'
-ev() { local name=$1; shift; { time python3 -m openral_mjx.eval "$@" --out "$out/$name.json" --no-breakdown; } 2>&1 | grep -v "^  " | tail -4; }
+# each run's whole output is also kept in $out/NAME.log: a call cut at its time limit still
+# brings back what the run printed (the summary lines alone come at the end)
+ev() { local name=$1; shift; { time python3 -m openral_mjx.eval "$@" --out "$out/$name.json" --no-breakdown; } 2>&1 | tee "$out/$name.log" | grep -v "^  " | tail -4; }
 # NVIDIA's MPS daemon (MPS=1): lets processes on one GPU run their kernels side by side
 mps_start() { [ "${MPS:-0}" = 1 ] || return 0
   export CUDA_MPS_PIPE_DIRECTORY=/tmp/mps-pipe CUDA_MPS_LOG_DIRECTORY=/tmp/mps-log

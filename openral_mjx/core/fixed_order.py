@@ -70,7 +70,7 @@ def total(x: jax.Array) -> jax.Array:
 
 def solve_spd(a: jax.Array, b: jax.Array) -> jax.Array:
     """Solve `a x = b` for a small symmetric positive-definite `a` (unrolled Cholesky); `b`
-    (n,) or (n, r), so ``solve_spd(a, eye(n))`` is the inverse."""
+    (n,) or (n, r)."""
     n = a.shape[0]
     chol = [[None] * n for _ in range(n)]
     for j in range(n):
@@ -111,3 +111,8 @@ def dense(x: jax.Array, kernel: jax.Array, bias: jax.Array) -> jax.Array:
         return acc + x[i] * kernel[i]
 
     return jax.lax.fori_loop(1, kernel.shape[0], add, bias + x[0] * kernel[0], unroll=8)
+
+
+def inv_spd(a: jax.Array) -> jax.Array:
+    """The inverse of a small symmetric positive-definite `a` (`solve_spd` of the identity)."""
+    return solve_spd(a, jnp.eye(a.shape[0], dtype=a.dtype))

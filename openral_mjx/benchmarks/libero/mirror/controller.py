@@ -330,12 +330,11 @@ def arm_torques(
     vel = fo.mv(jac, qd)
     force = g.kp[:3] * (c.goal_pos - dyn.ee_pos) - g.kd[:3] * vel[:3]
     torque = g.kp[3:] * orientation_error(c.goal_ori, dyn.ee_mat) - g.kd[3:] * vel[3:]
-    m_inv = fo.solve_spd(dyn.mass, jnp.eye(q.shape[0]))
-    inverse = lambda a: fo.solve_spd(a, jnp.eye(a.shape[0]))  # noqa: E731
-    lam_full = inverse(fo.mm(fo.mm(jac, m_inv), jac_t))
+    m_inv = fo.inv_spd(dyn.mass)
+    lam_full = fo.inv_spd(fo.mm(fo.mm(jac, m_inv), jac_t))
     jp, jr = jac[:3], jac[3:]
-    lam_pos = inverse(fo.mm(fo.mm(jp, m_inv), jp.T))
-    lam_ori = inverse(fo.mm(fo.mm(jr, m_inv), jr.T))
+    lam_pos = fo.inv_spd(fo.mm(fo.mm(jp, m_inv), jp.T))
+    lam_ori = fo.inv_spd(fo.mm(fo.mm(jr, m_inv), jr.T))
     wrench = jnp.concatenate([fo.mv(lam_pos, force), fo.mv(lam_ori, torque)])
     tau = fo.mv(jac_t, wrench) + dyn.bias
     jbar = fo.mm(fo.mm(m_inv, jac_t), lam_full)

@@ -30,13 +30,15 @@ from openral_mjx.scenes import SCENES, Scene, make_scene, scene_options
 
 
 @pytest.fixture
-def no_worker_envs(monkeypatch):
+def no_worker_envs(monkeypatch) -> set[str]:
     """Host scenes build with this interpreter for a worker environment not created here:
-    nothing is created or started (workers start only in `prepare`)."""
-    for name in envs.RECIPES:
-        if not envs.is_ready(name):
-            variable = f"OPENRAL_MJX_PYTHON_{name.upper().replace('-', '_')}"
-            monkeypatch.setenv(variable, sys.executable)
+    nothing is created or started (workers start only in `prepare`). Returns the environments
+    that were ready, read before the override (which makes every environment read as ready)."""
+    ready = {name for name in envs.RECIPES if envs.is_ready(name)}
+    for name in set(envs.RECIPES) - ready:
+        variable = f"OPENRAL_MJX_PYTHON_{name.upper().replace('-', '_')}"
+        monkeypatch.setenv(variable, sys.executable)
+    return ready
 
 
 def test_every_registered_scene_writes_an_instruction(no_worker_envs):
@@ -44,10 +46,10 @@ def test_every_registered_scene_writes_an_instruction(no_worker_envs):
     the mirrors say what their host scenes say."""
     said = {}
     for name in SCENES.names():
-        if name == "metaworld_mjx" and not envs.is_ready("metaworld"):  # its model's files
+        if name == "metaworld_mjx" and "metaworld" not in no_worker_envs:  # its model's files
             said[name] = mw.instruction(scene_options(name).task)
             continue
-        if name == "libero_mjx" and not envs.is_ready("lerobot-libero"):  # its model's export
+        if name == "libero_mjx" and "lerobot-libero" not in no_worker_envs:  # its model's export
             said[name] = libero.instruction(scene_options(name).task)
             continue
         host = SCENES.get(name).backends == ("host",)

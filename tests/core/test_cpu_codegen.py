@@ -10,14 +10,17 @@ from __future__ import annotations
 
 import os
 import platform
+import re
 import subprocess
 import sys
 
 import pytest
 
 from openral_mjx.core.cpu_codegen import FLAG, OPT_OUT, pin_cpu_isa
+from openral_mjx.report import load_report
 
 X86 = platform.machine().lower() in ("x86_64", "amd64")
+LEVEL = "--xla_backend_optimization_level"
 
 
 def test_adds_the_flag_on_x86_beside_the_users_flags():
@@ -67,3 +70,31 @@ def test_importing_the_package_turns_fma_contraction_off():
     if value == 0.0:  # a CPU without FMA: nothing to tell apart
         pytest.skip("this CPU has no FMA instructions")
     assert value > 1e20  # XLA's default contracts: what the pin prevents
+
+
+def test_the_tests_optimisation_level_gives_the_users_bits(push_c, tmp_path):
+    """The default tier compiles with LLVM's optimisation off (conftest); users get XLA's
+    default. Under the pin, with no FMA to contract, the two must give the same episodes bit
+    for bit, or the tests would check other numbers than users see: 16 seeds of the main job,
+    here against a process at the other level."""
+    from openral_mjx.evaluation import run_evaluation
+
+    level = re.search(r"--xla_backend_optimization_level=(\d)", os.environ["XLA_FLAGS"])
+    other = "2" if level is not None and level.group(1) == "0" else "0"
+    ours = run_evaluation(push_c, "scripted", n_envs=16, max_steps=150).report.episodes
+    out = tmp_path / "other_level.json"
+    env = os.environ | {"JAX_PLATFORMS": "cpu", "XLA_FLAGS": f"{LEVEL}={other}"}
+    argv = ["--n-envs", "16", "--max-steps", "150", "--backend", "c", "--out", str(out)]
+    subprocess.run(
+        [sys.executable, "-m", "openral_mjx.eval", *argv, "--no-breakdown"],
+        env=env,
+        check=True,
+        capture_output=True,
+    )
+    theirs = load_report(out).episodes
+
+    def key(e):
+        return e.success, e.steps, e.total_reward, e.metadata["first_success_step"]
+
+    assert [key(e) for e in ours] == [key(e) for e in theirs]
+    assert 0 < sum(e.success for e in ours) < 16  # successes and failures both compared

@@ -3,18 +3,21 @@
 from __future__ import annotations
 
 import os
+from collections.abc import Iterator
 from pathlib import Path
 
 # LLVM's optimisation off for the tests' XLA code unless XLA_FLAGS names a level: compiles are
-# most of the default tier's time (it runs ~20% faster), and under the package's CPU codegen
-# pin (no FMA) the bits do not depend on the level (`tests/core/test_cpu_codegen.py` checks
-# it). CI's worker and heavy tiers ask for the default level: unoptimised, MJX's physics runs
-# ~10x slower there. Set before JAX starts its CPU backend; subprocesses inherit it.
-OPT_LEVEL = "--xla_backend_optimization_level"
+# most of the tests' time (the default tier runs ~20% faster), and under the package's CPU
+# codegen pin (no FMA) the bits do not depend on the level (`tests/core/test_cpu_codegen.py`
+# checks it). Tests that run MJX's physics compile it optimised (`xla_level`). Set before JAX
+# starts its CPU backend; subprocesses inherit it.
+from xla_level import FLAG as OPT_LEVEL
+from xla_level import OPTIMISED
+
 if OPT_LEVEL not in os.environ.get("XLA_FLAGS", ""):
     os.environ["XLA_FLAGS"] = f"{os.environ.get('XLA_FLAGS', '')} {OPT_LEVEL}=0".strip()
 
-import jax  # noqa: E402
+import jax
 import pytest
 
 from openral_mjx.physics import PhysicsSettings
@@ -23,6 +26,21 @@ from openral_mjx.scenes import So101Box, TabletopPush
 # Reuse XLA compilations across test runs on this machine (CI starts cold either way).
 jax.config.update("jax_compilation_cache_dir", str(Path(__file__).parent.parent / ".jax_cache"))
 jax.config.update("jax_persistent_cache_min_compile_time_secs", 1.0)
+
+
+@pytest.fixture
+def xla_optimised() -> Iterator[None]:
+    """Programs compiled through `jax.stages.Lowered.compile` (the runner's) at XLA's default
+    optimisation level during the test (`xla_level`); its own patch, which a test's
+    `monkeypatch.undo()` leaves in place."""
+    compile_ = jax.stages.Lowered.compile
+
+    def optimised(self, compiler_options=None, **kwargs):
+        return compile_(self, {**OPTIMISED, **(compiler_options or {})}, **kwargs)
+
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(jax.stages.Lowered, "compile", optimised)
+        yield
 
 
 @pytest.fixture(scope="session")

@@ -73,17 +73,18 @@ def test_importing_the_package_turns_fma_contraction_off():
 
 
 def test_the_tests_optimisation_level_gives_the_users_bits(push_c, tmp_path):
-    """The default tier compiles with LLVM's optimisation off (conftest); users get XLA's
-    default. Under the pin, with no FMA to contract, the two must give the same episodes bit
-    for bit, or the tests would check other numbers than users see: 16 seeds of the main job,
-    here against a process at the other level."""
+    """The tests compile with LLVM's optimisation off (conftest); users get XLA's default.
+    Under the pin, with no FMA to contract, the two must give the same episodes bit for bit,
+    or the tests would check other numbers than users see: 16 seeds of the main job, here
+    against a process at the other level."""
     from openral_mjx.evaluation import run_evaluation
 
-    level = re.search(r"--xla_backend_optimization_level=(\d)", os.environ["XLA_FLAGS"])
-    other = "2" if level is not None and level.group(1) == "0" else "0"
+    level = re.search(rf"{LEVEL}=(\d)", os.environ.get("XLA_FLAGS", ""))
+    unoptimised = level is not None and level.group(1) == "0"
+    other = "" if unoptimised else f"{LEVEL}=0"  # "": XLA's default, what users get
     ours = run_evaluation(push_c, "scripted", n_envs=16, max_steps=150).report.episodes
     out = tmp_path / "other_level.json"
-    env = os.environ | {"JAX_PLATFORMS": "cpu", "XLA_FLAGS": f"{LEVEL}={other}"}
+    env = os.environ | {"JAX_PLATFORMS": "cpu", "XLA_FLAGS": other}
     argv = ["--n-envs", "16", "--max-steps", "150", "--backend", "c", "--out", str(out)]
     subprocess.run(
         [sys.executable, "-m", "openral_mjx.eval", *argv, "--no-breakdown"],

@@ -59,6 +59,7 @@ def test_uncacheable_runs_have_no_key(push_c, push_mjx, monkeypatch):
 
 
 @pytest.mark.heavy
+@pytest.mark.usefixtures("xla_optimised")  # MJX's physics (tests/xla_level.py)
 def test_second_run_reuses_the_traced_programs(push_mjx, tmp_path, monkeypatch):
     monkeypatch.setattr(compile_cache, "_EXPORT_DIR", tmp_path)
     policy = make_policy("zero", push_mjx)

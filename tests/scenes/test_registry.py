@@ -14,6 +14,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 from worker_envs import require_worker_envs
+from xla_level import for_backend
 
 from openral_mjx.physics import BACKEND_NAMES
 from openral_mjx.scenes import SCENES, make_scene, scene_settings
@@ -66,11 +67,12 @@ def test_scene_resets_and_steps(name, backend):
         scene.prepare(N_ENVS)
         seeds = jnp.arange(N_ENVS, dtype=jnp.int32)
         keys = jax.vmap(jax.random.PRNGKey)(seeds)
-        state = jax.jit(jax.vmap(scene.reset_with_seed))(seeds, keys)
+        options = for_backend(backend)  # MJX's physics compiled optimised (xla_level)
+        state = jax.jit(jax.vmap(scene.reset_with_seed), compiler_options=options)(seeds, keys)
         low, high = scene.action_bounds()
         assert low.shape == high.shape == (scene.action_size,)
         action = jnp.broadcast_to((low + high) / 2, (N_ENVS, scene.action_size))
-        step = jax.jit(jax.vmap(scene.step))
+        step = jax.jit(jax.vmap(scene.step), compiler_options=options)
         spec = scene.observation_spec
         states = [state]
         for _ in range(STEPS):

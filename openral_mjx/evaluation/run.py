@@ -228,20 +228,8 @@ def evaluate_spec(
     earlier = _resumed(resume, rule, decide, keep_finished)
     owned = contextlib.ExitStack()
     with owned, count_warnings() as warned:  # on an error, close what this call built
-        if isinstance(scene, str):
-            if isinstance(policy, str):  # a lerobot policy's cameras, unless options name them
-                options = policy_options(scene, policy, options)
-            scene = build_spec_scene(scene, options, spec)
-            owned.callback(scene.close)
-        scene = randomization.randomize(scene, randomize)
-        if isinstance(policy, str):
-            pol = make_policy(policy, scene)
-            if pol.close is not None:
-                owned.callback(pol.close)
-        else:
-            pol, policy = policy, policy.name
-        if pol.instruct is not None:  # this task's (a suite shares one policy over its tasks)
-            pol.instruct(scene.instruction)
+        scene, pol = _scene_and_policy(scene, policy, spec, options, randomize, owned)
+        policy = policy if isinstance(policy, str) else pol.name  # the report names it
         steps = scene.max_steps if spec.max_steps is None else spec.max_steps
         aligned = pol.aligned_episodes
         refill_every = spec.refill_every
@@ -301,13 +289,12 @@ def evaluate_spec(
             signal = stop_signal(e)
             if signal is None or not (stops or keep_finished) or not (seen or earlier):
                 raise
+            # the seeds every chunk of which finished (a prefix), as a partial report
             arrays = seen.get("arrays", {"success": np.zeros(0, bool)})
             n = len(arrays["success"])
             stopper = rule if rule is not None else decide
             chunk = spec.n_envs if stopper is None else stopper.design.looks[0]
-            looks = -(-n // chunk)
-            run_s = time.perf_counter() - start  # compiling included: no chunk timings here
-            timing = RunTiming(0.0, run_s, (run_s / max(looks, 1),) * looks, steps, chunk)
+            timing = _stopped_timing(n, chunk, time.perf_counter() - start, steps)
             seeds = requested[len(earlier) : len(earlier) + n]
             episodes = episodes_of(arrays, seeds, timing) if n else []
             total = len(requested)
@@ -323,6 +310,41 @@ def evaluate_spec(
             report.decision = decide.info()
         resources = owned.pop_all()  # handed to the Evaluation
     return Evaluation(report, scene, pol, params, requested, arrays, timing, resources)
+
+
+def _scene_and_policy(
+    scene: str | Scene,
+    policy: str | Policy,
+    spec: RunSpec,
+    options: Mapping[str, Any] | None,
+    randomize: Sequence[str],
+    owned: contextlib.ExitStack,
+) -> tuple[Scene, Policy]:
+    """The run's scene (built from its name as `spec` says, with the cameras a lerobot
+    policy's features imply) with `randomize`'s factors, and its policy told the scene's
+    instruction; what is built here is closed by `owned`."""
+    if isinstance(scene, str):
+        if isinstance(policy, str):  # a lerobot policy's cameras, unless options name them
+            options = policy_options(scene, policy, options)
+        scene = build_spec_scene(scene, options, spec)
+        owned.callback(scene.close)
+    scene = randomization.randomize(scene, randomize)
+    if isinstance(policy, str):
+        pol = make_policy(policy, scene)
+        if pol.close is not None:
+            owned.callback(pol.close)
+    else:
+        pol = policy
+    if pol.instruct is not None:  # this task's (a suite shares one policy over its tasks)
+        pol.instruct(scene.instruction)
+    return scene, pol
+
+
+def _stopped_timing(n: int, chunk: int, run_s: float, steps: int) -> RunTiming:
+    """Timings of a run stopped by a signal after `n` seeds in looks of `chunk`: its wall time
+    `run_s` (compiling included) spread evenly, as no chunk timings came back."""
+    looks = -(-n // chunk)
+    return RunTiming(0.0, run_s, (run_s / max(looks, 1),) * looks, steps, chunk)
 
 
 def _resumed(
@@ -352,6 +374,28 @@ def _resumed(
     return list(resume.episodes)
 
 
+def _sequential_info(
+    rule: SequentialRule,
+    n_episodes: int,
+    successes: int,
+    interval: tuple[float, float],
+    partial: PartialInfo | None,
+) -> SequentialInfo:
+    """The report's `sequential` block: the design, the looks taken and why the run stopped."""
+    design = rule.design
+    look = design.looks.index(n_episodes)
+    stopped = "target" if design.meets_target(look, successes) else "max_episodes"
+    return SequentialInfo(
+        target_halfwidth=design.halfwidth,
+        max_episodes=design.max_episodes,
+        chunk=design.looks[0],
+        looks=look + 1,
+        stopped="interrupted" if partial is not None else stopped,
+        halfwidth=(interval[1] - interval[0]) / 2,
+        rule=RULE,
+    )
+
+
 def _report(
     scene: Scene,
     policy: str,
@@ -373,23 +417,12 @@ def _report(
     success = np.array([e.success for e in episodes], bool)
     successes = int(success.sum())
     low, high = wilson_interval(successes, n_episodes)
-    sequential = None
     exact = rule is not None and partial is None
+    if exact:  # a partial run did not stop by the design: Wilson's interval, not its own
+        low, high = rule.design.interval(rule.design.looks.index(n_episodes), successes)
+    sequential = None
     if rule is not None:
-        design = rule.design
-        look = design.looks.index(n_episodes)
-        if exact:  # a partial run did not stop by the design: Wilson's interval, not its own
-            low, high = design.interval(look, successes)
-        stopped = "target" if design.meets_target(look, successes) else "max_episodes"
-        sequential = SequentialInfo(
-            target_halfwidth=design.halfwidth,
-            max_episodes=design.max_episodes,
-            chunk=design.looks[0],
-            looks=look + 1,
-            stopped="interrupted" if partial is not None else stopped,
-            halfwidth=(high - low) / 2,
-            rule=RULE,
-        )
+        sequential = _sequential_info(rule, n_episodes, successes, (low, high), partial)
     names = episodes[0].metadata["factors"] if episodes else {}
     factors = {k: [e.metadata["factors"][k] for e in episodes] for k in names}
     compile_s, run_s = timing.compile_s, timing.run_s

@@ -315,5 +315,13 @@ class PhysicsBackend(abc.ABC):
         return {"name": self.name, "n_substeps": self.n_substeps}
 
 
+def reference_qpos(m: mujoco.MjModel) -> np.ndarray:
+    """The model's reference pose: its first keyframe's joint positions if it has one, else
+    `qpos0`. Where a backend parks a diverged env and what Warp warms its kernels up from, so
+    a model whose `qpos0` piles bodies on each other (LIBERO's objects all start at the
+    origin: 1,862 contacts in `libero_10/0`) names a resting pose in a keyframe."""
+    return np.array(m.key_qpos[0] if m.nkey else m.qpos0)
+
+
 def all_finite(*arrays: jax.Array) -> jax.Array:
     return jnp.all(jnp.stack([jnp.all(jnp.isfinite(a)) for a in arrays]))

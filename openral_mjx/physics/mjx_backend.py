@@ -32,6 +32,7 @@ from openral_mjx.physics.base import (
     Quantities,
     all_finite,
     check_fields,
+    reference_qpos,
 )
 from openral_mjx.physics.contact_sensors import add_contact_sensors, sensordata_addresses
 
@@ -111,7 +112,7 @@ class MjxBackend(PhysicsBackend):
         self._body_ids = jnp.asarray(self.body_ids, dtype=jnp.int32)
         self._site_ids = jnp.asarray(self.site_ids, dtype=jnp.int32)
         self._geom_ids = jnp.asarray(self.geom_ids, dtype=jnp.int32)
-        self._qpos0 = jnp.asarray(self.mj_model.qpos0, dtype=jnp.float32)
+        self._park_qpos = jnp.asarray(reference_qpos(self.mj_model), dtype=jnp.float32)
 
     def _put_model(self) -> mjx.Model:
         return mjx.put_model(self.mj_model, impl=self.impl, device=self.home_device())
@@ -197,11 +198,11 @@ class MjxBackend(PhysicsBackend):
         mocap: tuple[jax.Array, jax.Array] | None = None,
         render: bool = True,
     ) -> PhysicsState:
-        # A diverged env (already counted a failure) is parked at the reference pose, so its
-        # garbage cannot spread, e.g. into Warp's contact buffer shared by the batch.
+        # A diverged env (already counted a failure) is parked at the model's reference pose,
+        # so its garbage cannot spread, e.g. into Warp's contact buffer shared by the batch.
         d, ok = state.data, state.quantities.ok
         d = d.replace(
-            qpos=jnp.where(ok, d.qpos, self._qpos0),
+            qpos=jnp.where(ok, d.qpos, self._park_qpos),
             qvel=jnp.where(ok, d.qvel, 0.0),
             qacc_warmstart=jnp.where(ok, d.qacc_warmstart, 0.0),
             ctrl=ctrl,

@@ -18,7 +18,7 @@ import numpy as np
 
 from openral_mjx.core.errors import ConfigError
 from openral_mjx.core.rotations import quat_to_mat
-from openral_mjx.physics.base import Quantities, all_finite, warp_installed
+from openral_mjx.physics.base import Quantities, all_finite, reference_qpos, warp_installed
 from openral_mjx.physics.cameras import SensorSpec, sensor_key
 from openral_mjx.physics.mjx_backend import MjxBackend, mjx
 from openral_mjx.physics.warp_render import WarpCameras, renderable
@@ -140,13 +140,14 @@ class WarpBackend(MjxBackend):
 
     def warm_up(self) -> None:
         """Warp builds (or loads from its cache) its kernels on the first call: one env, one
-        step. The kernels take the batch size at run time, so this covers any batch."""
+        step from the model's reference pose. The kernels take the batch size at run time, so
+        this covers any batch."""
         if self._warm:
             return
 
         m = self.mj_model
-        state = jax.jit(jax.vmap(self.init))(
-            jnp.asarray(m.qpos0[None], jnp.float32), jnp.zeros((1, m.nv), jnp.float32)
+        state = jax.jit(jax.vmap(self.init))(  # from a resting pose: no overflow warnings
+            jnp.asarray(reference_qpos(m)[None], jnp.float32), jnp.zeros((1, m.nv), jnp.float32)
         )
         jax.block_until_ready(
             jax.jit(jax.vmap(self.step))(state, jnp.asarray(np.zeros((1, m.nu)), jnp.float32))

@@ -22,6 +22,7 @@ from openral_mjx.benchmarks.libero.agreement import libero_reference
 from openral_mjx.benchmarks.libero.assets import ENV, load_sampled, load_task, physics_spec
 from openral_mjx.benchmarks.libero.mirror import LiberoMjx, LiberoMjxOptions
 from openral_mjx.benchmarks.libero.mirror.controller import RobotDynamics
+from openral_mjx.physics.base import reference_qpos
 
 require_worker_envs(ENV)
 pytestmark = pytest.mark.worker
@@ -87,6 +88,25 @@ def test_same_initial_state_and_actions_give_libero_s_observations(
         np.testing.assert_allclose(states[:, 8:], ref["expert"], atol=1e-5)
         np.testing.assert_allclose(np.stack(qpos), ref["qpos"], atol=1e-5)
         assert not np.asarray(state.metrics["diverged"])
+
+
+def test_reference_pose_is_a_resting_state(scene: LiberoMjx) -> None:
+    """Backends park a diverged env at the model's reference pose (and warp warms up from it).
+    LIBERO's MJCF starts every object at the origin, a pile of hundreds of contacts (more than
+    a warp env's contact capacity), so the mirror names its first initial state instead."""
+    m = scene.mj_model
+    np.testing.assert_array_equal(
+        reference_qpos(m), scene.export.init_states[0][1 : 1 + m.nq].astype(np.float64)
+    )
+    d = mujoco.MjData(m)
+
+    def contacts(qpos: np.ndarray) -> int:
+        d.qpos[:] = qpos
+        mujoco.mj_forward(m, d)
+        return d.ncon
+
+    resting, piled = contacts(reference_qpos(m)), contacts(m.qpos0)  # measured: 0 and 143
+    assert resting < piled and resting <= 100, (resting, piled)
 
 
 def test_seed_gives_the_same_bits_alone_and_in_a_batch(scene: LiberoMjx) -> None:

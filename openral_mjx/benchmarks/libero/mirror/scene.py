@@ -197,6 +197,9 @@ class LiberoMjx(Scene):
             self.mjx_changes = for_mjx_jax(self.spec, MJX_CONTACTS_PER_CONDIM)
         meta = t.meta
         compiled = self.spec.compile()
+        # The reference pose backends park a diverged env at (and warp warms up from): the
+        # first shipped initial state. The MJCF's own qpos0 piles the objects at the origin.
+        self.spec.add_key(name="reference", qpos=t.init_states[0][1 : 1 + compiled.nq])
         self.goal = Goal.build(t.goal, compiled)
         self.backend = make_backend(
             backend,

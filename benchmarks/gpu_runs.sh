@@ -222,12 +222,19 @@ json.dump(d, open(sys.argv[2], 'w'), indent=1)" /tmp/push_warp_1m.json "$out/pus
       --ns ${NS:-4096} --steps ${STEPS:-30} ${EXTRA:-} --out "$out/libero_speed${TAG:-}.json" ;;
   libero-suite-cli)  # issues 37/42: the standard protocol as a user runs it, each of SUITES x 50
                      # initial states through eval --suite, POLICY (random: every episode runs to
-                     # the suite's step limit), TASK_PROCS tasks at once (MPS=1 under MPS)
+                     # the suite's step limit; mlp: benchmarks/libero_mlp_policy.py's random MLP
+                     # on the state), TASK_PROCS tasks at once (MPS=1 under MPS)
     mps_start || exit 1
+    policy=${POLICY:-random}; opts=()
+    if [ "$policy" = mlp ]; then
+      [ -d /tmp/mlp_libero ] || python3 benchmarks/libero_mlp_policy.py --out /tmp/mlp_libero | tail -1
+      policy=mlp:/tmp/mlp_libero; opts=(--opt expert=false)
+    fi
     for s in ${SUITES:-libero_spatial libero_object libero_goal libero_10}; do
       { time python3 -m openral_mjx.eval --scene libero_mjx --suite "$s" --backend warp \
-        --n-envs 50 --policy "${POLICY:-random}" --task-processes "${TASK_PROCS:-10}" \
-        --out "/tmp/libero_suite_$s.json" --no-breakdown; } 2>&1 | grep -v "^  " | tail -4
+        --n-envs 50 --policy "$policy" "${opts[@]}" --task-processes "${TASK_PROCS:-10}" \
+        --out "/tmp/libero_suite_$s.json" --no-breakdown; } 2>&1 | tee "$out/libero_suite_$s.log" \
+        | grep -v "^  " | tail -4
       python3 -c "import json,sys; d=json.load(open(sys.argv[1])); d['episodes']=len(d['episodes'])
 json.dump(d, open(sys.argv[2], 'w'), indent=1)" "/tmp/libero_suite_$s.json" \
         "$out/libero_suite_${s}_k${TASK_PROCS:-10}.json"

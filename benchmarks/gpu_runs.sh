@@ -240,6 +240,22 @@ json.dump(d, open(sys.argv[2], 'w'), indent=1)" "/tmp/libero_suite_$s.json" \
         "$out/libero_suite_${s}_k${TASK_PROCS:-10}.json"
     done
     mps_stop ;;
+  libero-suites-at-once)  # issue 42: the four suites' standard protocol with every suite's eval
+                          # started at once (TASK_PROCS tasks each, all under MPS), POLICY as in
+                          # libero-suite-cli; each suite's report and output go to $out/at_once
+    policy=${POLICY:-random}; opts=()
+    if [ "$policy" = mlp ]; then
+      [ -d /tmp/mlp_libero ] || python3 benchmarks/libero_mlp_policy.py --out /tmp/mlp_libero | tail -1
+      policy=mlp:/tmp/mlp_libero; opts=(--opt expert=false)
+    fi
+    MPS=1; mps_start || exit 1; mkdir -p "$out/at_once"
+    time (for s in ${SUITES:-libero_spatial libero_object libero_goal libero_10}; do
+      python3 -m openral_mjx.eval --scene libero_mjx --suite "$s" --backend warp --n-envs 50 \
+        --policy "$policy" "${opts[@]}" --task-processes "${TASK_PROCS:-10}" \
+        --out "$out/at_once/libero_suite_$s.json" --no-breakdown > "$out/at_once/$s.log" 2>&1 &
+    done; wait)
+    grep -h "success" "$out"/at_once/*.log | cut -c1-200
+    mps_stop ;;
   libero-cams)  # issue 42: LIBERO's two cameras on warp (MuJoCo-Warp's renderer, IMAGE px)
                 # against the same run without them: TASK at NS envs, STEPS control steps,
                 # random policy, fixed chunks (every episode runs to STEPS)

@@ -16,11 +16,18 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import sys
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import tyro
-from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+from rich.progress import (
+    BarColumn,
+    MofNCompleteColumn,
+    Progress,
+    TaskID,
+    TextColumn,
+    TimeElapsedColumn,
+)
 
 from openral_mjx.cli.common import guarded, parse, stderr
 from openral_mjx.cli.eval_args import EvalArgs
@@ -114,8 +121,8 @@ def build(plan: EvalPlan, owned: contextlib.ExitStack) -> Built:
 def execute(
     plan: EvalPlan, built: Built, owned: contextlib.ExitStack
 ) -> Evaluation | EvalReport | SweepReport:
-    """Run the evaluation (a suite: every task in turn) under a progress bar; an `Evaluation`
-    keeps its scene and arrays for what `write` re-simulates."""
+    """Run the evaluation (a suite: every task in turn; a sweep: every point) under a progress
+    bar; an `Evaluation` keeps its scene and arrays for what `write` re-simulates."""
     args = plan.args
     with Progress(
         TextColumn("{task.description}"),
@@ -135,61 +142,10 @@ def execute(
             progress.update(bar, description=f"episodes{rate}", completed=done, total=total)
 
         if args.suite is not None:
-            together = args.task_processes > 1 or args.cluster is not None
-
-            def on_task(i: int, n: int, name: str) -> None:
-                if together:  # called as each task ends, `i` of `n` done
-                    progress.update(bar, description=f"tasks done ({name})", completed=i, total=n)
-                else:
-                    progress.update(
-                        bar, description=f"task {i + 1}/{n} {name}", completed=0, total=None
-                    )
-
-            if together and plan.backend in ("mjx", "warp") and not mps_running():
-                stderr.print(
-                    f"note: --task-processes {args.task_processes} without NVIDIA's MPS daemon: "
-                    "processes take turns on a GPU (start it: nvidia-cuda-mps-control -d)"
-                )
-            return evaluate_suite(
-                args.scene,
-                args.suite,
-                args.policy,
-                plan.spec,
-                options=plan.options,
-                task_processes=args.task_processes,
-                compile_cache=default_cache_dir() if args.compile_cache else None,
-                on_task=on_task,
-                on_chunk=lambda done, total, _: progress.update(bar, completed=done, total=total),
-                resume=plan.resume if isinstance(plan.resume, EvalReport) else None,
-                cluster=args.cluster,
-            )
+            return _execute_suite(plan, progress, bar)
         assert built.scene is not None
         if args.sweep is not None:
-
-            def on_point(i: int, n: int, value: float) -> None:
-                name = args.sweep.partition("=")[0]
-                if args.cluster is not None:  # called as each point ends, `i` of `n` done
-                    description = f"points done ({name}={value:g})"
-                    progress.update(bar, description=description, completed=i, total=n)
-                    return
-                progress.update(
-                    bar, description=f"{name}={value:g} ({i + 1}/{n})", completed=0, total=None
-                )
-
-            return run_sweep(
-                built.scene,
-                args.policy,
-                args.sweep,
-                # --plots draws the sweep's curve, not reward curves: no per-step rewards
-                dataclasses.replace(plan.spec, step_rewards=False),
-                randomize=parse_factors(args.randomize),
-                on_point=on_point,
-                on_chunk=on_chunk,
-                resume=plan.resume if isinstance(plan.resume, SweepReport) else None,
-                cluster=None
-                if args.cluster is None
-                else SweepCluster(args.cluster, args.scene, built.options, args.compile_cache),
-            )
+            return _execute_sweep(plan, built, progress, bar, on_chunk)
         evaluation = evaluate_spec(
             built.scene,
             args.policy,
@@ -201,6 +157,72 @@ def execute(
         )
     owned.enter_context(evaluation)
     return evaluation
+
+
+def _execute_suite(plan: EvalPlan, progress: Progress, bar: TaskID) -> EvalReport:
+    """Every task of `--suite`, one after another or `--task-processes`/`--cluster` at once."""
+    args = plan.args
+    together = args.task_processes > 1 or args.cluster is not None
+
+    def on_task(i: int, n: int, name: str) -> None:
+        if together:  # called as each task ends, `i` of `n` done
+            progress.update(bar, description=f"tasks done ({name})", completed=i, total=n)
+        else:
+            progress.update(bar, description=f"task {i + 1}/{n} {name}", completed=0, total=None)
+
+    if together and plan.backend in ("mjx", "warp") and not mps_running():
+        stderr.print(
+            f"note: --task-processes {args.task_processes} without NVIDIA's MPS daemon: "
+            "processes take turns on a GPU (start it: nvidia-cuda-mps-control -d)"
+        )
+    return evaluate_suite(
+        args.scene,
+        args.suite,
+        args.policy,
+        plan.spec,
+        options=plan.options,
+        task_processes=args.task_processes,
+        compile_cache=default_cache_dir() if args.compile_cache else None,
+        on_task=on_task,
+        on_chunk=lambda done, total, _: progress.update(bar, completed=done, total=total),
+        resume=plan.resume if isinstance(plan.resume, EvalReport) else None,
+        cluster=args.cluster,
+    )
+
+
+def _execute_sweep(
+    plan: EvalPlan,
+    built: Built,
+    progress: Progress,
+    bar: TaskID,
+    on_chunk: Callable[[int, int, int], None],
+) -> SweepReport:
+    """Every point of `--sweep`, here or over `--cluster`."""
+    args = plan.args
+    name = args.sweep.partition("=")[0]
+
+    def on_point(i: int, n: int, value: float) -> None:
+        if args.cluster is not None:  # called as each point ends, `i` of `n` done
+            description = f"points done ({name}={value:g})"
+            progress.update(bar, description=description, completed=i, total=n)
+            return
+        progress.update(bar, description=f"{name}={value:g} ({i + 1}/{n})", completed=0, total=None)
+
+    cluster = None
+    if args.cluster is not None:
+        cluster = SweepCluster(args.cluster, args.scene, built.options, args.compile_cache)
+    return run_sweep(
+        built.scene,
+        args.policy,
+        args.sweep,
+        # --plots draws the sweep's curve, not reward curves: no per-step rewards
+        dataclasses.replace(plan.spec, step_rewards=False),
+        randomize=parse_factors(args.randomize),
+        on_point=on_point,
+        on_chunk=on_chunk,
+        resume=plan.resume if isinstance(plan.resume, SweepReport) else None,
+        cluster=cluster,
+    )
 
 
 # ---- write -----------------------------------------------------------------------------------

@@ -9,8 +9,9 @@ actions the policy sent to the mirror: the same feature names, shapes, dtype and
 images the same way up and within 8/255 almost everywhere, the same state and task string.
 Seeds replayed in the other batch slot give bit-identical inputs and actions; a small
 Diffusion (slow tier: another compile) gets the same episodes per seed when run twice.
-The module's ACT part took 346 s on 2 cores at load 6-7 (CPU 180 s): the mirror's compile
-with its cameras on `c` (its host callbacks are not cacheable) and two lerobot imports.
+The ACT part (the worker and heavy tiers) takes ~105 s on 2 cores, most of it the mirror's
+compile with its cameras on `c` (its host callbacks are not cacheable) and two lerobot imports;
+it took 346 s at load 6-7 before the tests compiled unoptimised (docs/tests.md).
 """
 
 from __future__ import annotations
@@ -35,11 +36,7 @@ from openral_mjx.scenes import SCENES
 
 ENV = "lerobot-libero"
 require_worker_envs(ENV)
-# `slow`: ~340 s on 2 cores (the mirror compiled with its cameras on `c`, then LIBERO's own env
-# replayed), more than CI's budget allows; the mapping itself is checked in the default tier
-# (tests/policies/test_lerobot_libero_inputs.py) and LIBERO's images reaching a lerobot policy
-# on the host scene in the worker tier (test_worker_env_scenes.py).
-pytestmark = [pytest.mark.worker, pytest.mark.heavy, pytest.mark.slow]
+pytestmark = [pytest.mark.worker, pytest.mark.heavy]
 
 TASK = "libero_spatial/0"
 SIZE = 32
@@ -187,7 +184,7 @@ def test_each_seed_gets_the_same_inputs_and_actions_in_either_slot(run):
         np.testing.assert_array_equal(np.asarray(r[key])[:2], np.asarray(r[key])[2:][::-1])
 
 
-@pytest.mark.slow  # another compile of the mirror: 3-5 min on 2 busy cores
+@pytest.mark.slow  # another compile of the mirror and a Diffusion: ~60 s more on 2 cores
 def test_diffusion_samples_the_same_episodes_per_seed(tmp_path):
     """A small Diffusion (two observation steps, noise drawn for the whole batch) runs on the
     mirror in aligned chunks; seeds 0, 1 played twice get bit-identical inputs and actions

@@ -158,6 +158,23 @@ def test_c_model_copies_forget_fields_no_longer_given():
     assert models[1].dof_damping[0] == 4.0
 
 
+def test_c_model_copies_keep_float64_values_that_came_back_rounded():
+    """Fields cross JAX as float32: an env's value that is the model's own value rounded
+    keeps the float64 original (MetaWorld's plate-slide ran 37 steps slower on a channel
+    position rounded by 3e-10 m); a value that differs is written as given."""
+    spec = mujoco.MjSpec.from_string(XML.replace('pos="0 0.5 0.05"', 'pos="0 0.6 0.015"'))
+    b = make_backend("c", spec, QuantitySpec(), SUBSTEPS)
+    m = b.host_model
+    slider = m.body("slider").id
+    rounded = np.repeat(m.body_pos[None].astype(np.float32), 2, 0)
+    assert rounded[0, slider, 1] != m.body_pos[slider, 1]  # 0.6 is not a float32
+    rounded[1, slider, 0] = np.float32(0.25)
+    models = b._models(2, ("body_pos",), (rounded.astype(np.float64),))
+    np.testing.assert_array_equal(models[0].body_pos, m.body_pos)
+    assert models[1].body_pos[slider, 0] == np.float32(0.25)
+    assert models[1].body_pos[slider, 1] == m.body_pos[slider, 1]
+
+
 def test_c_init_with_fields_unbatched_equals_a_batch_of_one():
     """`init` called outside `vmap` (a scene's reset of one env) takes fields without a lead
     axis: the post moved by its field shows in the pose readout, as in a batch of one."""

@@ -185,15 +185,24 @@ def outcome_agreement(
         batching="chunks",
     ) as ev:
         mirror = np.asarray(ev.arrays["success"], bool)
+        mirror_steps = np.asarray(ev.arrays["first_success_step"], np.int64)
         ran = np.asarray(ev.seeds)
     vecs = np.asarray(mirror_resets(scene, ran).info["vec"], np.float64)
     results = host_rollouts(workers, [{"rand_vec": v, "max_steps": scene.max_steps} for v in vecs])
     host = np.array([r["first_success"] >= 0 for r in results])
+    # the runner counts steps taken (success after step 1 is 1); `rollout` indexes from 0
+    host_steps = np.array([r["first_success"] + 1 for r in results], np.int64)
+    both = mirror & host
     only_m, only_h = int(np.sum(mirror & ~host)), int(np.sum(host & ~mirror))
     return {
         "seeds": ran,
         "mirror": mirror,
         "host": host,
+        "mirror_steps": mirror_steps,
+        "host_steps": host_steps,
+        "steps_median_difference": (
+            float(np.median(mirror_steps[both] - host_steps[both])) if both.any() else None
+        ),
         "agreement": float(np.mean(mirror == host)),
         "mcnemar_p": float(mcnemar_exact_pvalue(only_m, only_h)),
         "mirror_rate": float(mirror.mean()),
@@ -231,7 +240,8 @@ def task_row(
         "object_max_m": float(traj["object"].max()),
     }
     if out is not None:
-        row.update({k: v for k, v in out.items() if k not in ("seeds", "mirror", "host")})
+        arrays = ("seeds", "mirror", "host", "mirror_steps", "host_steps")
+        row.update({k: v for k, v in out.items() if k not in arrays})
         row["n_seeds"] = len(out["seeds"])
     return row
 

@@ -25,6 +25,7 @@ from typing import Any
 
 import numpy as np
 
+from openral_mjx.core.errors import ConfigError
 from openral_mjx.host.pool import RemoteError, Worker, WorkerFailure
 from openral_mjx.host.remote import ActorLost, RayWorker
 
@@ -49,6 +50,8 @@ class BatchConfig:
         env: extra environment variables for the workers.
         factors: names of the episode factors each env reports at reset (`gym_batch`); every
             result then holds them as ``factors`` (n, len(factors)) float32.
+        path_first: directories put first on the workers' import path (e.g.
+            `envs.our_mujoco_path`); local workers only.
     """
 
     python: str
@@ -61,6 +64,7 @@ class BatchConfig:
     reset_timeout_s: float = 600.0
     env: dict[str, str] = dataclasses.field(default_factory=dict)
     factors: tuple[str, ...] = ()
+    path_first: tuple[str, ...] = ()
 
 
 def default_workers() -> int:
@@ -109,6 +113,12 @@ class EnvBatch:
         """Start the workers as Ray actors on the connected cluster's nodes from now on, each
         in that node's copy of worker environment `env_name` (see `openral_mjx.host.remote`);
         by default as many as the cluster has CPUs."""
+        if self.config.path_first:
+            first = ", ".join(self.config.path_first)
+            raise ConfigError(
+                f"workers with packages put first on their path ({first}) run on this machine "
+                "only, not on a Ray cluster"
+            )
         self._stop()
         self._n = 0  # the next reset lays the slots out again, over the cluster's workers
         self._ray = (ray, env_name, int(ray.cluster_resources().get("CPU", 1)))
@@ -128,7 +138,8 @@ class EnvBatch:
         c = self.config
         worker: Worker | RayWorker
         if self._ray is None:
-            worker = Worker(c.python, c.env, self._logs / f"worker{w}.log", name=f"worker {w}")
+            log = self._logs / f"worker{w}.log"
+            worker = Worker(c.python, c.env, log, name=f"worker {w}", path_first=c.path_first)
         else:
             ray, env_name, _ = self._ray
             deadlines = (c.step_timeout_s, c.reset_timeout_s)

@@ -132,6 +132,40 @@ def is_ready(name: str) -> bool:
         return False
 
 
+def our_mujoco_path(python: str) -> str:
+    """A directory holding only a link to this process's `mujoco` package, to put first on a
+    worker's import path so that the simulator there runs on the evaluator's MuJoCo instead of
+    its pinned one (`python`, the worker's interpreter, must be this Python version: the
+    package is compiled). Kept under `envs_root()` per MuJoCo version and interpreter."""
+    import mujoco
+
+    from openral_mjx.core.errors import ConfigError
+
+    theirs = subprocess.run(
+        [python, "-c", "import sys; print(*sys.version_info[:2], sep='.')"],
+        capture_output=True,
+        text=True,
+        check=True,
+    ).stdout.strip()
+    ours = "{}.{}".format(*sys.version_info[:2])
+    if theirs != ours:
+        raise ConfigError(
+            f"a worker on this process's mujoco needs its environment on Python {ours}; "
+            f"{python} is Python {theirs}"
+        )
+    package = Path(mujoco.__file__).resolve().parent
+    tag = hashlib.sha256(str(package).encode()).hexdigest()[:12]
+    shim = envs_root() / "_mujoco_paths" / f"{mujoco.__version__}-{tag}"
+    link = shim / "mujoco"
+    if not link.is_symlink():
+        shim.mkdir(parents=True, exist_ok=True)
+        tmp = shim / f".mujoco.{os.getpid()}"
+        tmp.unlink(missing_ok=True)
+        tmp.symlink_to(package)
+        os.replace(tmp, link)  # atomic: a concurrent creator sees the link whole
+    return str(shim)
+
+
 def _recipe(name: str) -> EnvRecipe | None:
     if name not in RECIPES:
         raise unknown("worker environment", name, sorted(RECIPES))

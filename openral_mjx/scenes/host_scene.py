@@ -96,6 +96,7 @@ class HostOptions:
         observation: dict[str, tuple[tuple[int, ...], str]],
         action_size: int,
         env: dict[str, str] | None = None,
+        path_first: tuple[str, ...] = (),
     ) -> BatchConfig:
         """The workers' configuration with these options (the interpreter is set later)."""
         return BatchConfig(
@@ -108,6 +109,7 @@ class HostOptions:
             step_timeout_s=self.step_timeout_s,
             reset_timeout_s=self.reset_timeout_s,
             env=dict(env or {}),
+            path_first=path_first,
         )
 
     def __post_init__(self) -> None:

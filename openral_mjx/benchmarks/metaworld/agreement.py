@@ -24,7 +24,6 @@ import contextlib
 import json
 import math
 import os
-import subprocess
 import sys
 import tempfile
 from collections.abc import Iterator, Sequence
@@ -37,7 +36,7 @@ import numpy as np
 from openral_mjx.benchmarks.metaworld.mirror.scene import MetaWorldMjx
 from openral_mjx.core.errors import ConfigError
 from openral_mjx.core.files import write_text_atomic
-from openral_mjx.host.envs import ensure_env
+from openral_mjx.host.envs import ensure_env, our_mujoco_path
 from openral_mjx.host.pool import Worker
 from openral_mjx.runner.episode import seed_keys
 from openral_mjx.scenes import make_scene
@@ -62,7 +61,7 @@ def host_workers(task: str, n: int, engine: str = "metaworld") -> Iterator[list[
         raise ConfigError(f"unknown MetaWorld engine {engine!r}; valid: {', '.join(ENGINES)}")
     python = ensure_env(ENV)
     logs = Path(tempfile.mkdtemp(prefix="openral_mjx_agreement_"))
-    first = [_our_mujoco_path(python, logs)] if engine == "ours" else []
+    first = [our_mujoco_path(python)] if engine == "ours" else []
     workers: list[Worker] = []
     try:
         for i in range(n):
@@ -76,29 +75,6 @@ def host_workers(task: str, n: int, engine: str = "metaworld") -> Iterator[list[
     finally:
         for w in workers:
             w.close()
-
-
-def _our_mujoco_path(python: str, root: Path) -> str:
-    """A directory holding only a link to this process's `mujoco` package, for the worker's
-    path; its interpreter must be this one's Python version (the package is compiled)."""
-    import mujoco
-
-    theirs = subprocess.run(
-        [python, "-c", "import sys; print(*sys.version_info[:2], sep='.')"],
-        capture_output=True,
-        text=True,
-        check=True,
-    ).stdout.strip()
-    ours = "{}.{}".format(*sys.version_info[:2])
-    if theirs != ours:
-        raise ConfigError(
-            f"MetaWorld on this process's mujoco needs its worker environment on Python {ours}; "
-            f"{python} is Python {theirs}"
-        )
-    shim = root / "mujoco_path"
-    shim.mkdir()
-    (shim / "mujoco").symlink_to(Path(mujoco.__file__).resolve().parent)
-    return str(shim)
 
 
 def host_versions(workers: Sequence[Worker]) -> dict[str, str]:

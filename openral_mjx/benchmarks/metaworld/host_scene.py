@@ -28,7 +28,7 @@ import functools
 
 from openral_mjx.core.errors import unknown
 from openral_mjx.core.options import check
-from openral_mjx.host.envs import ensure_env
+from openral_mjx.host.envs import ensure_env, our_mujoco_path
 from openral_mjx.scenes import SceneEntry
 from openral_mjx.scenes.host_scene import HostOptions, HostScene, HostSceneSpec
 
@@ -40,6 +40,7 @@ OBS_SIZE = 39
 ACTION_SIZE = 4
 MAX_STEPS = 500  # MetaWorld's max_path_length
 CONTROL_DT = 0.0125  # frame_skip 5 x timestep 2.5 ms
+MUJOCOS = ("metaworld", "ours")  # MetaWorld's pinned MuJoCo, or the evaluator's (option mujoco)
 
 # MetaWorld 3.1.1's task lists (metaworld.env_dict; tests check them against the installed
 # package): every v3 task in its order, MT10, and ML45's test split (its train split is the rest).
@@ -232,8 +233,11 @@ def instruction(task: str) -> str:
 class MetaWorldOptions(HostOptions):
     """`metaworld` options: the task, whether the goal is observed (MT benchmarks: true; ML:
     false), the camera resolution (0: no camera; lerobot's MetaWorld policies see 480), the
-    episode limit, whether the workers compute the scripted expert's action, and the offscreen
-    GL platform for the camera (`egl`, or `osmesa` where EGL is missing)."""
+    episode limit, whether the workers compute the scripted expert's action, the offscreen
+    GL platform for the camera (`egl`, or `osmesa` where EGL is missing), and the MuJoCo
+    MetaWorld runs on: ``metaworld``, its pinned one (3.3.0), or ``ours``, the evaluator's
+    (what the mirror runs; the worker environment's Python must be the evaluator's), which
+    separates the mirror's differences from the version's."""
 
     task: str = "reach-v3"
     goal_observable: bool = True
@@ -241,6 +245,7 @@ class MetaWorldOptions(HostOptions):
     max_steps: int = MAX_STEPS
     expert: bool = True
     gl: str = "egl"
+    mujoco: str = "metaworld"
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -252,6 +257,10 @@ class MetaWorldOptions(HostOptions):
             f"option max_steps={self.max_steps}: must be in 1..{MAX_STEPS} (MetaWorld's limit)",
         )
         check(self.gl in ("egl", "osmesa"), f"option gl={self.gl!r}; valid: egl, osmesa")
+        check(
+            self.mujoco in MUJOCOS,
+            f"option mujoco={self.mujoco!r}; valid: {', '.join(MUJOCOS)}",
+        )
 
 
 def metaworld(options: MetaWorldOptions, **_: object) -> HostScene:
@@ -272,8 +281,10 @@ def metaworld(options: MetaWorldOptions, **_: object) -> HostScene:
     from openral_mjx.benchmarks.metaworld.mirror.task import random_vector
     from openral_mjx.benchmarks.metaworld.mirror.tasks import TASKS as MIRROR_TASKS
 
+    python = ensure_env(ENV)
+    first = (our_mujoco_path(python),) if o.mujoco == "ours" else ()
     batch = dataclasses.replace(
-        o.batch_config(FACTORY, kwargs, observation, ACTION_SIZE, env), factors=FACTORS
+        o.batch_config(FACTORY, kwargs, observation, ACTION_SIZE, env, first), factors=FACTORS
     )
     spec = HostSceneSpec(
         name="metaworld",
@@ -289,7 +300,7 @@ def metaworld(options: MetaWorldOptions, **_: object) -> HostScene:
         reset_draw=functools.partial(random_vector, MIRROR_TASKS[o.task]),
         reset_draw_option="rand_vec",
     )
-    return HostScene(spec, o, ENV, ensure_env(ENV))
+    return HostScene(spec, o, ENV, python)
 
 
 # `SCENES`'s entry for `metaworld` (registered by reference in `openral_mjx.scenes`)

@@ -33,7 +33,7 @@ from openral_mjx.cli.common import guarded, parse, stderr
 from openral_mjx.cli.eval_args import EvalArgs
 from openral_mjx.cli.eval_plan import EvalPlan, check_distributed, validate, writes_media
 from openral_mjx.cli.eval_text import decision_summary, listing, sequential_summary, warnings_line
-from openral_mjx.core.errors import ConfigError
+from openral_mjx.core.errors import ConfigError, RunFailed
 from openral_mjx.core.interrupts import EXIT_CODES, signals_raise
 from openral_mjx.evaluation import Evaluation, cluster
 from openral_mjx.evaluation.frames import check_frames, record_frames, save_frames
@@ -389,11 +389,30 @@ def run(args: EvalArgs) -> int:
                         show(plan, written)
         except Interrupted as stop:
             return keep_partial(plan, stop)
+        except RunFailed as failed:
+            return keep_failed(plan, failed)
         finally:
             if warned:
                 print(warnings_line(warned), file=sys.stderr)
     processes.finish()
     return 0
+
+
+def keep_failed(plan: EvalPlan, failed: RunFailed) -> int:
+    """A run that failed after some of it finished (`RunFailed` with a partial report): write
+    that to --out and say, on one line, why it stopped, what it kept and how to finish it;
+    exit code 1. Without a report, the error's line alone."""
+    report = failed.report
+    if isinstance(report, EvalReport) and report.partial is not None and processes.is_primary():
+        save_report(report, plan.out)
+        print(
+            f"error: {failed}; kept {report.partial.describe()} in {plan.out}; "
+            f"finish with: {plan.command} --resume",
+            file=sys.stderr,
+        )
+    else:
+        print(f"error: {failed}", file=sys.stderr)
+    return 1
 
 
 def keep_partial(plan: EvalPlan, stop: Interrupted) -> int:

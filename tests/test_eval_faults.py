@@ -24,7 +24,7 @@ from openral_mjx import eval as eval_cli
 from openral_mjx.cli import eval_plan
 from openral_mjx.evaluation import suite as suite_module
 from openral_mjx.evaluation.run import build_scene
-from openral_mjx.report import load_report
+from openral_mjx.report import load_report, save_report
 from openral_mjx.report.sweep import load_sweep, save_sweep
 
 ARMS = Path(__file__).parent / "data" / "arms"
@@ -231,3 +231,72 @@ def test_diverging_run_counts_mujoco_warnings(monkeypatch, capfd, tmp_path):
         "printed; by kind in the report's mujoco_warnings)"
     ]
     assert list(cwd.iterdir()) == []
+
+
+def _dying_suite(monkeypatch, tmp_path, tasks: list[str]):
+    """A suite of `tasks` whose task processes run `task_faults.run_task` (saved reports, and
+    SIGKILL where a marker says): the process pool's handling is what is under test."""
+    import functools
+
+    import task_faults
+
+    from openral_mjx.evaluation import evaluate
+
+    base = evaluate("tabletop_push", "zero", n_envs=2, max_steps=2, backend="c", threads=1)
+    for task in tasks:
+        row = dataclasses.replace(base.per_task[0], task=task)
+        save_report(dataclasses.replace(base, task=task, per_task=[row]), tmp_path / f"{task}.json")
+    monkeypatch.setattr(suite_module, "scene_suite", lambda scene, suite: list(tasks))
+    monkeypatch.setattr(eval_plan, "scene_suite", lambda scene, suite: list(tasks))
+    in_processes = functools.partial(
+        suite_module._suite_in_processes, run_task=task_faults.run_task
+    )
+    monkeypatch.setattr(suite_module, "_suite_in_processes", in_processes)
+    monkeypatch.setenv(task_faults.FOLDER, str(tmp_path))
+    return [
+        *COMMON,
+        "--scene",
+        "metaworld_mjx",
+        "--suite",
+        "abc",
+        "--policy",
+        "zero",
+        "--task-processes",
+        "2",
+    ]
+
+
+@pytest.mark.heavy  # ~8 task processes started (spawn, ~3 s each on 2 busy cores)
+def test_a_killed_task_process_restarts_its_tasks_and_one_that_dies_alone_keeps_the_rest(
+    monkeypatch, capsys, tmp_path
+):
+    """A task process killed by SIGKILL (the out-of-memory killer's signal) broke the pool and
+    the whole suite with a traceback (four LIBERO suites at once on one H200). Now the
+    unfinished tasks start again with half the processes, after a one-line warning; a task
+    whose process dies even alone ends the run with one line, exit code 1, and the finished
+    tasks kept as a partial report that --resume finishes."""
+    tasks = ["a", "b", "c", "d"]
+    argv = _dying_suite(monkeypatch, tmp_path, tasks)
+    out = tmp_path / "suite.json"
+    (tmp_path / "b.die-once").touch()
+    code, _, err = run_cli(monkeypatch, capsys, *argv, "--out", str(out))
+    assert code == 0, err
+    warning = [line for line in err.splitlines() if line.startswith("warning: a task process")]
+    assert len(warning) == 1 and "was killed by SIGKILL" in warning[0], err
+    assert "1 at a time" in warning[0] and "Traceback" not in err
+    report = load_report(out)
+    assert [r.task for r in report.per_task] == tasks and report.partial is None
+
+    (tmp_path / "c.die").touch()
+    code, _, err = run_cli(monkeypatch, capsys, *argv, "--out", str(out))
+    line = err.strip().splitlines()[-1]
+    assert code == 1 and "Traceback" not in err, err
+    assert line.startswith("error: task c's process was killed by SIGKILL"), line
+    assert "kept 2 of 4 tasks" in line and line.endswith("--resume"), line
+    kept = load_report(out)
+    assert kept.partial.finished == ["a", "b"]
+
+    (tmp_path / "c.die").unlink()
+    assert run_cli(monkeypatch, capsys, *argv, "--out", str(out), "--resume")[0] == 0
+    resumed = load_report(out)
+    assert resumed.partial is None and [r.task for r in resumed.per_task] == tasks

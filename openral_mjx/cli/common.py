@@ -15,7 +15,7 @@ from typing import Any, NoReturn, TypeVar
 
 from rich.console import Console
 
-from openral_mjx.core.errors import ConfigError
+from openral_mjx.core.errors import ConfigError, RunFailed
 from openral_mjx.core.interrupts import EXIT_CODES, stop_reason, stop_signal
 from openral_mjx.host.pool import INTERRUPTED
 
@@ -31,11 +31,15 @@ def fail(message: str) -> NoReturn:
 
 def guarded(main: Callable[[], T]) -> T:
     """Run `main`, turning user mistakes (`ConfigError`) into a one-line error and exit 2, and
-    a stop by Ctrl-C or SIGTERM into one line and exit 130 or 143."""
+    a stop by Ctrl-C or SIGTERM into one line and exit 130 or 143, and a run that failed
+    (`RunFailed`) into one line and exit 1."""
     try:
         return main()
     except ConfigError as e:
         fail(str(e))
+    except RunFailed as e:
+        print(f"error: {e}", file=sys.stderr)
+        raise SystemExit(1) from None
     except KeyboardInterrupt as e:
         _stopped(stop_signal(e) or "SIGINT")
     except Exception as e:

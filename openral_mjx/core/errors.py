@@ -17,3 +17,13 @@ def unknown(kind: str, value: object, valid: Iterable[object]) -> ConfigError:
     """Build the canonical "unknown X 'v'; valid: a, b, c" error."""
     choices = ", ".join(str(v) for v in valid) or "(none)"
     return ConfigError(f"unknown {kind} {value!r}; valid: {choices}")
+
+
+class RunFailed(RuntimeError):
+    """A run that could not finish for a reason outside the user's input (a task process
+    killed by the system, e.g. for memory). The CLI prints its message on one line and exits
+    with code 1; `report`, where set, holds what finished, marked partial, to resume from."""
+
+    def __init__(self, message: str, report: object | None = None) -> None:
+        super().__init__(message)
+        self.report = report

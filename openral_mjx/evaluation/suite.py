@@ -26,12 +26,14 @@ import contextlib
 import dataclasses
 import multiprocessing
 import os
+import signal
+import sys
 import time
 from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
-from openral_mjx.core.errors import ConfigError
+from openral_mjx.core.errors import ConfigError, RunFailed
 from openral_mjx.core.interrupts import stop_signal
 from openral_mjx.evaluation import cluster
 from openral_mjx.evaluation.cluster import RayRun
@@ -109,6 +111,13 @@ def evaluate_suite(
             )
         else:
             _suite_in_turn(scene, policy, todo, options, spec, on_task, on_chunk, reports)
+    except RunFailed as e:
+        if not (reports or earlier):
+            raise
+        finished = tasks[: len(tasks) - len(todo) + len(reports)]
+        partial = PartialInfo(str(e), "tasks", len(finished), len(tasks), finished)
+        blocks = [*([earlier] if earlier else []), *reports]
+        raise RunFailed(str(e), merge_reports(blocks, suite, policy, spec.command, partial)) from e
     except BaseException as e:
         signal = stop_signal(e)
         if signal is None or not (reports or earlier):
@@ -272,27 +281,85 @@ def _suite_in_processes(
     compile_cache: Path | None,
     on_task: Callable[[int, int, str], None] | None,
     reports: list[EvalReport],
+    run_task: Callable[..., EvalReport] = _task_report,
 ) -> None:
     """The `tasks` with `task_processes` at once (fresh `spawn`ed processes: no JAX or GPU
     state is inherited); `reports` gets the first tasks' reports in the suite's order as soon
     as every one before has ended, so an interrupt keeps a prefix. Its timings are made the
-    wall time's (see `evaluate_suite`)."""
+    wall time's (see `evaluate_suite`).
+
+    A task process that dies (killed for memory by the system, most often, with many tasks
+    at once on one machine) breaks the pool: the tasks that had not ended start again in a
+    new pool of half as many processes, with a warning. One that dies running alone raises
+    `RunFailed`. A task's episodes do not depend on its process, so a restart changes none."""
     start = time.perf_counter()
+    ended: dict[int, EvalReport] = {}
+    processes = min(task_processes, len(tasks))
+    while len(reports) + len(ended) < len(tasks):
+        todo = [i for i in range(len(reports), len(tasks)) if i not in ended]
+        processes = min(processes, len(todo))
+        died = _run_pool(
+            scene,
+            policy,
+            tasks,
+            todo,
+            options,
+            spec,
+            processes,
+            compile_cache,
+            on_task,
+            reports,
+            ended,
+            run_task,
+        )
+        if died is None:
+            break
+        left = [tasks[i] for i in range(len(reports), len(tasks)) if i not in ended]
+        if processes == 1:
+            raise RunFailed(f"task {left[0]}'s process {died}")
+        processes //= 2
+        print(
+            f"warning: a task process {died}; the {len(left)} unfinished tasks start again, "
+            f"{processes} at a time",
+            file=sys.stderr,
+        )
+    _spread_wall_time(reports, time.perf_counter() - start, policy)
+
+
+def _run_pool(
+    scene: str,
+    policy: str,
+    tasks: list[str],
+    todo: list[int],
+    options: Mapping[str, Any] | None,
+    spec: RunSpec,
+    processes: int,
+    compile_cache: Path | None,
+    on_task: Callable[[int, int, str], None] | None,
+    reports: list[EvalReport],
+    ended: dict[int, EvalReport],
+    run_task: Callable[..., EvalReport],
+) -> str | None:
+    """Tasks `todo` in a pool of `processes`: each report into `ended`, then into `reports`
+    once the tasks before it have theirs. None, or how a process died (the pool then ends)."""
     pool = concurrent.futures.ProcessPoolExecutor(
-        max_workers=min(task_processes, len(tasks)),
+        max_workers=processes,
         mp_context=multiprocessing.get_context("spawn"),
         initializer=_start_task_process,
         initargs=(compile_cache,),
     )
     try:
         futures = {
-            pool.submit(_task_report, scene, task, policy, options or {}, spec): i
-            for i, task in enumerate(tasks)
+            pool.submit(run_task, scene, tasks[i], policy, options or {}, spec): i for i in todo
         }
-        ended: dict[int, EvalReport] = {}
+        workers = list(getattr(pool, "_processes", {}).values())  # all started by now
         for future in concurrent.futures.as_completed(futures):
             i = futures[future]
-            ended[i] = future.result()
+            try:
+                ended[i] = future.result()
+            except concurrent.futures.process.BrokenProcessPool:
+                stop_pool(pool)
+                return _death(workers)
             while len(reports) in ended:
                 reports.append(ended.pop(len(reports)))
             if on_task is not None:
@@ -301,7 +368,22 @@ def _suite_in_processes(
         stop_pool(pool)
         raise
     pool.shutdown()
-    _spread_wall_time(reports, time.perf_counter() - start, policy)
+    return None
+
+
+def _death(workers: list[multiprocessing.process.BaseProcess]) -> str:
+    """How the pool's process died, from its exit code ("was killed by SIGKILL ...")."""
+    codes = sorted({w.exitcode for w in workers if w.exitcode not in (None, 0)})
+    # the pool ends the others with SIGTERM once one is gone: that one's code tells
+    told = [c for c in codes if c != -signal.SIGTERM] or codes
+    if not told:
+        return "ended abruptly"
+    code = told[0]
+    if code < 0:
+        name = signal.Signals(-code).name
+        why = " (the system's out-of-memory killer, most often)" if name == "SIGKILL" else ""
+        return f"was killed by {name}{why}"
+    return f"exited with code {code}"
 
 
 def _spread_wall_time(reports: list[EvalReport], wall: float, policy: str) -> None:

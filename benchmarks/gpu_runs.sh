@@ -242,11 +242,16 @@ json.dump(d, open(sys.argv[2], 'w'), indent=1)" "/tmp/libero_suite_$s.json" \
     mps_stop ;;
   libero-suites-at-once)  # issue 42: the four suites' standard protocol with every suite's eval
                           # started at once (TASK_PROCS tasks each, all under MPS), POLICY as in
-                          # libero-suite-cli; each suite's report and output go to $out/at_once
+                          # libero-suite-cli or act (libero-act's ACT on two cameras); each
+                          # suite's report and output go to $out/at_once
     policy=${POLICY:-random}; opts=()
     if [ "$policy" = mlp ]; then
       [ -d /tmp/mlp_libero ] || python3 benchmarks/libero_mlp_policy.py --out /tmp/mlp_libero | tail -1
       policy=mlp:/tmp/mlp_libero; opts=(--opt expert=false)
+    elif [ "$policy" = act ]; then  # two IMAGE px cameras: the tasks' visual files must be there
+      [ -d /tmp/act_libero ] || python3 benchmarks/libero_act_policy.py --out /tmp/act_libero \
+        --size "${IMAGE:-128}" | tail -1
+      policy=lerobot:/tmp/act_libero; opts=(--opt "image_size=${IMAGE:-128}")
     fi
     MPS=1; mps_start || exit 1; mkdir -p "$out/at_once"
     time (for s in ${SUITES:-libero_spatial libero_object libero_goal libero_10}; do

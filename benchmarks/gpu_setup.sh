@@ -33,6 +33,23 @@ fi
 if [ -f .warpcache/warpcache.tgz ] && [ ! -d ~/.cache/warp ]; then
   mkdir -p ~/.cache && tar xzf .warpcache/warpcache.tgz -C ~/.cache
 fi
+# LIBERO's task exports, carried as .libero_models (physics; see docs/libero_mjx.md), are copied
+# to /tmp/libero_models so later calls need not carry them again; the tasks' visual files
+# (meshes, textures: ~250 MB for the four suites' 40 tasks, too large for one call) come as
+# xz-compressed tar parts in .vis1, .vis2, ... and are unpacked into its files/ folder.
+export OPENRAL_MJX_LIBERO_MODELS=${OPENRAL_MJX_LIBERO_MODELS:-/tmp/libero_models}
+if [ -d .libero_models ] && [ ! -f "$OPENRAL_MJX_LIBERO_MODELS/.copied" ]; then
+  mkdir -p "$OPENRAL_MJX_LIBERO_MODELS" && cp -r .libero_models/. "$OPENRAL_MJX_LIBERO_MODELS/" \
+    && touch "$OPENRAL_MJX_LIBERO_MODELS/.copied"
+fi
+for d in .vis*; do
+  [ -d "$d" ] || continue
+  for a in "$d"/*.tar.xz; do
+    [ -f "$OPENRAL_MJX_LIBERO_MODELS/.$(basename "$a")-done" ] && continue
+    mkdir -p "$OPENRAL_MJX_LIBERO_MODELS" && tar xJf "$a" -C "$OPENRAL_MJX_LIBERO_MODELS" \
+      && touch "$OPENRAL_MJX_LIBERO_MODELS/.$(basename "$a")-done"
+  done
+done
 # MetaWorld itself (mujoco 3.3.0) for the host baseline and the mirror's assets: carry .gpumw
 # (see benchmarks/metaworld_mirror.py). Its packages go to /tmp/mwsite, put first on the path
 # of the system's python (numpy, scipy) by a wrapper: the worker environment's interpreter.

@@ -162,30 +162,34 @@ def per_env_leaves(scene: Scene) -> Any:
 RESET_SLICE = 16
 
 
-def make_refill_fns(
-    scene: Scene, policy: Policy, max_steps: int, n_slots: int, refill_every: int = 1
-) -> tuple[Callable[[Any, jax.Array], RefillCarry], Callable[..., RefillCarry]]:
-    """`start(params, seeds[n]) -> carry` and `advance(params, carry, seeds[n], budget[1],
-    shrink_at[1]) -> carry` (jit both): `advance` runs control steps until every seed has
-    finished, `budget` more steps have run, or every seed has a slot and at most `shrink_at`
-    slots are still running (the batch has drained enough to `shrink`; -1: never). `n_slots
-    <= n` envs run at once at the start; `advance` runs any slot count."""
+class RefillLoop:
+    """The continuous-batching loop's pieces for one scene, policy and episode limit:
+    `start` fills the first `n_slots` slots, `advance` runs control steps (see
+    `make_refill_fns`). Each method is one traced piece of the loop: a fresh episode for
+    some seed rows, writing ended episodes' rows, the refill (of the whole batch, or of the
+    slots that take a seed, slice by slice on a layout-invariant backend), one step."""
 
-    budget_ms = 1000.0 * scene.control_dt
-    state_per_env = per_env_leaves(scene)
-    # A reset of fewer envs than the batch, at other positions, gives each seed the same bits
-    # only where the backend's episodes do not depend on the layout (`c`): there a refill
-    # resets the slots that take a seed in slices of `RESET_SLICE` envs, not the whole batch.
-    # Elsewhere (mjx, warp) the whole batch resets, as in the chunked runner.
-    sliced = scene.backend.layout_invariant
+    def __init__(
+        self, scene: Scene, policy: Policy, max_steps: int, n_slots: int, refill_every: int
+    ) -> None:
+        self.scene, self.policy = scene, policy
+        self.max_steps, self.n_slots, self.refill_every = max_steps, n_slots, refill_every
+        self.budget_ms = 1000.0 * scene.control_dt
+        self.state_per_env = per_env_leaves(scene)
+        # A reset of fewer envs than the batch, at other positions, gives each seed the same
+        # bits only where the backend's episodes do not depend on the layout (`c`): there a
+        # refill resets the slots that take a seed in slices of `RESET_SLICE` envs, not the
+        # whole batch. Elsewhere (mjx, warp) the whole batch resets, as in the chunked runner.
+        self.sliced = scene.backend.layout_invariant
 
-    def fresh(seeds: jax.Array, rows: jax.Array) -> Slots:
+    def fresh(self, seeds: jax.Array, rows: jax.Array) -> Slots:
+        """New episodes of the seeds at `rows` (one slot each), from their reset states."""
         chosen = seeds[rows]
         reset_keys, policy_keys = seed_keys(chosen)
-        state = jax.vmap(scene.traced.reset_with_seed)(chosen, reset_keys)
+        state = jax.vmap(self.scene.traced.reset_with_seed)(chosen, reset_keys)
         return Slots(
             state=state,
-            pstate=policy_state0(policy, state.obs, rows.shape[0]),
+            pstate=policy_state0(self.policy, state.obs, rows.shape[0]),
             acc=start_arrays(state),
             keys=policy_keys,
             t=jnp.zeros(rows.shape, jnp.int32),
@@ -193,36 +197,56 @@ def make_refill_fns(
             ended=jnp.zeros(rows.shape, bool),
         )
 
-    def write_out(carry: RefillCarry, s: Slots | None = None) -> tuple[RefillCarry, Slots]:
+    def write_out(self, carry: RefillCarry, s: Slots | None = None) -> tuple[RefillCarry, Slots]:
         """Write the rows of the episodes of slots `s` (default: the carry's) that ended since
         the last write; returns the carry and `s` with those slots marked ended."""
         s = carry.slots if s is None else s
         n = carry.finished.shape[0]
-        over = ~s.ended & (s.state.done | (s.t >= max_steps))
+        over = ~s.ended & (s.state.done | (s.t >= self.max_steps))
         rows = jnp.where(over, s.seed_index, n)  # row n: dropped
-        acc = s.acc.replace(info=jax.vmap(scene.episode_info)(s.state))
+        acc = s.acc.replace(info=jax.vmap(self.scene.episode_info)(s.state))
         results = jax.tree.map(lambda r, a: r.at[rows].set(a, mode="drop"), carry.results, acc)
         carry = carry.replace(
             results=results, finished=carry.finished.at[rows].set(True, mode="drop")
         )
         return carry, s.replace(ended=s.ended | over)
 
-    def refill(carry: RefillCarry, seeds: jax.Array) -> RefillCarry:
+    def refill(self, carry: RefillCarry, seeds: jax.Array) -> RefillCarry:
         """Ended slots take the next seeds in order; those past the last seed go idle."""
         s, n = carry.slots, seeds.shape[0]
-        n_slots = s.t.shape[0]
         want = s.ended & (s.seed_index < n)
         rows = carry.next_seed[0] + jnp.cumsum(want) - 1
         take = want & (rows < n)
         next_seed = jnp.minimum(carry.next_seed + jnp.sum(want), n)
         idle = want & ~take
-        if not sliced:  # the whole batch resets; the slots that take a seed keep their slices
-            new = fresh(seeds, jnp.where(take, rows, 0))
-            slots = where_per_env(take, new.replace(state=None), s.replace(state=None))
-            slots = slots.replace(state=where_per_env(take, new.state, s.state, state_per_env))
-            slots = slots.replace(seed_index=jnp.where(idle, n, slots.seed_index))
-            carry, slots = write_out(carry.replace(slots=slots, next_seed=next_seed))
-            return carry.replace(slots=slots)
+        if not self.sliced:
+            return self._refill_whole(carry, seeds, rows, take, idle, next_seed)
+        s = s.replace(seed_index=jnp.where(idle, n, s.seed_index))
+        return self._refill_slices(carry.replace(slots=s, next_seed=next_seed), seeds, rows, take)
+
+    def _refill_whole(
+        self,
+        carry: RefillCarry,
+        seeds: jax.Array,
+        rows: jax.Array,
+        take: jax.Array,
+        idle: jax.Array,
+        next_seed: jax.Array,
+    ) -> RefillCarry:
+        """The whole batch resets; the slots that take a seed keep their slices."""
+        s, n = carry.slots, seeds.shape[0]
+        new = self.fresh(seeds, jnp.where(take, rows, 0))
+        slots = where_per_env(take, new.replace(state=None), s.replace(state=None))
+        state = where_per_env(take, new.state, s.state, self.state_per_env)
+        slots = slots.replace(state=state, seed_index=jnp.where(idle, n, slots.seed_index))
+        carry, slots = self.write_out(carry.replace(slots=slots, next_seed=next_seed))
+        return carry.replace(slots=slots)
+
+    def _refill_slices(
+        self, carry: RefillCarry, seeds: jax.Array, rows: jax.Array, take: jax.Array
+    ) -> RefillCarry:
+        """Only the slots that take a seed reset, `RESET_SLICE` at a time."""
+        n, n_slots = seeds.shape[0], take.shape[0]
         k = min(n_slots, RESET_SLICE)
         # The slots that take a seed, in slot order, padded with n_slots (no slot) to a
         # multiple of k; slice i of them resets in iteration i.
@@ -231,26 +255,26 @@ def make_refill_fns(
         def reset_slice(i: jax.Array, c: RefillCarry) -> RefillCarry:
             at = jax.lax.dynamic_slice(order, (i * k,), (k,))
             used = at < n_slots
-            new = fresh(seeds, jnp.where(used, jnp.take(rows, at, mode="clip"), 0))
+            new = self.fresh(seeds, jnp.where(used, jnp.take(rows, at, mode="clip"), 0))
             # Episodes that end at their reset are written now; padding writes nothing (row n).
             new = new.replace(seed_index=jnp.where(used, new.seed_index, n))
-            c, new = write_out(c, new)
+            c, new = self.write_out(c, new)
 
             def put(x: jax.Array, y: jax.Array, batched: bool = True) -> jax.Array:
                 return x.at[at].set(y, mode="drop") if batched else x
 
             slots = jax.tree.map(put, c.slots.replace(state=None), new.replace(state=None))
-            state = jax.tree.map(put, c.slots.state, new.state, state_per_env)
+            state = jax.tree.map(put, c.slots.state, new.state, self.state_per_env)
             return c.replace(slots=slots.replace(state=state))
 
-        s = s.replace(seed_index=jnp.where(idle, n, s.seed_index))
-        carry = carry.replace(slots=s, next_seed=next_seed)
         return jax.lax.fori_loop(0, (jnp.sum(take) + k - 1) // k, reset_slice, carry)
 
-    def start(params: Any, seeds: jax.Array) -> RefillCarry:
+    def start(self, params: Any, seeds: jax.Array) -> RefillCarry:
+        """The carry with the first `n_slots` seeds' episodes started."""
+        del params
         n = seeds.shape[0]
-        slots = fresh(seeds, jnp.arange(n_slots))
-        info = jax.eval_shape(jax.vmap(scene.episode_info), slots.state)
+        slots = self.fresh(seeds, jnp.arange(self.n_slots))
+        info = jax.eval_shape(jax.vmap(self.scene.episode_info), slots.state)
         results = jax.tree.map(
             lambda x: jnp.zeros((n, *x.shape[1:]), x.dtype),
             slots.acc.replace(info=info),
@@ -259,39 +283,57 @@ def make_refill_fns(
             slots=slots,
             results=results,
             finished=jnp.zeros(n, bool),
-            next_seed=jnp.full((1,), n_slots, jnp.int32),
+            next_seed=jnp.full((1,), self.n_slots, jnp.int32),
             steps=jnp.zeros((1,), jnp.int32),
         )
-        carry, slots = write_out(carry)
+        carry, slots = self.write_out(carry)
         return carry.replace(slots=slots)
 
-    def step(params: Any, carry: RefillCarry, seeds: jax.Array) -> RefillCarry:
+    def step(self, params: Any, carry: RefillCarry, seeds: jax.Array) -> RefillCarry:
+        """One control step of every slot, its ended episodes written, then a refill if due."""
         s = carry.slots
         new_state, new_pstate, _ = control_step(
-            scene, policy, params, s.state, s.pstate, s.keys, s.t
+            self.scene, self.policy, params, s.state, s.pstate, s.keys, s.t
         )
         live = ~s.ended
-        acc = accumulate(s.acc, new_state, new_pstate, live, s.t, policy, budget_ms)
+        acc = accumulate(s.acc, new_state, new_pstate, live, s.t, self.policy, self.budget_ms)
         slots = s.replace(state=new_state, pstate=new_pstate, acc=acc, t=s.t + 1)
-        carry, slots = write_out(carry.replace(steps=carry.steps + 1), slots)
+        carry, slots = self.write_out(carry.replace(steps=carry.steps + 1), slots)
         carry = carry.replace(slots=slots)
-        due = (carry.steps[0] % refill_every == 0) & jnp.any(
+        due = (carry.steps[0] % self.refill_every == 0) & jnp.any(
             slots.ended & (slots.seed_index < seeds.shape[0])
         )
-        return jax.lax.cond(due, refill, lambda c, _: c, carry, seeds)
+        return jax.lax.cond(due, self.refill, lambda c, _: c, carry, seeds)
 
     def advance(
-        params: Any, carry: RefillCarry, seeds: jax.Array, budget: jax.Array, shrink_at: jax.Array
+        self,
+        params: Any,
+        carry: RefillCarry,
+        seeds: jax.Array,
+        budget: jax.Array,
+        shrink_at: jax.Array,
     ) -> RefillCarry:
+        """Control steps until every seed has finished, `budget` more have run, or the batch
+        has drained to `shrink_at` running slots with every seed assigned."""
         stop_at = carry.steps[0] + budget[0]
 
         def going(c: RefillCarry) -> jax.Array:
             drained = (c.next_seed[0] >= seeds.shape[0]) & (jnp.sum(~c.slots.ended) <= shrink_at[0])
             return ~jnp.all(c.finished) & (c.steps[0] < stop_at) & ~drained
 
-        return jax.lax.while_loop(going, lambda c: step(params, c, seeds), carry)
+        return jax.lax.while_loop(going, lambda c: self.step(params, c, seeds), carry)
 
-    return start, advance
+
+def make_refill_fns(
+    scene: Scene, policy: Policy, max_steps: int, n_slots: int, refill_every: int = 1
+) -> tuple[Callable[[Any, jax.Array], RefillCarry], Callable[..., RefillCarry]]:
+    """`start(params, seeds[n]) -> carry` and `advance(params, carry, seeds[n], budget[1],
+    shrink_at[1]) -> carry` (jit both): `advance` runs control steps until every seed has
+    finished, `budget` more steps have run, or every seed has a slot and at most `shrink_at`
+    slots are still running (the batch has drained enough to `shrink`; -1: never). `n_slots
+    <= n` envs run at once at the start; `advance` runs any slot count."""
+    loop = RefillLoop(scene, policy, max_steps, n_slots, refill_every)
+    return loop.start, loop.advance
 
 
 def make_shrink_fn(scene: Scene, n_out: int) -> Callable[[RefillCarry], RefillCarry]:

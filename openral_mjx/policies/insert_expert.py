@@ -101,37 +101,15 @@ def insert_expert(
         del key, obs_spec
         return None, (jnp.zeros((), jnp.int32), jnp.zeros((), jnp.int32))
 
-    def act(params, pstate, obs, key):
-        del params, key
-        phase, timer = pstate
-        q = part(obs, "joint_pos")
-        tube, block = part(obs, "tube_pos"), part(obs, "block_pos")
-        axis = quat_axis_z(part(obs, "tube_quat"))
-        axis = jnp.where(axis[2] < 0, -axis, axis)  # the tube is symmetric: take the upper end
-        lower = tube - axis * (tube_length / 2)
-        hole_xy, top_z = block[:2], block[2] + block_height / 2
-
-        pos, rot, jp, jr = fk(q)
-        n = q.shape[0]
-        # The jaws' free side (the fingers' width, grasp-site y) is held radial, so the open
-        # jaws reach the tube from the pan axis' side.
-        radial = tube[:2] - pan_xy
-        side = jnp.append(-radial / jnp.maximum(fo.norm(radial), 1e-6), 0.0)
-        grasp_point = lower + axis * grasp_height
-        rel = pos - tube
-        off_axis = fo.norm(rel - axis * fo.dot(rel, axis))
-        held = (off_axis < 0.008) & (
-            jnp.abs(fo.dot(rel, axis) - (grasp_height - tube_length / 2)) < 0.02
-        )
-
-        # ---- transitions -----------------------------------------------------------------
-        pre = grasp_point + side * pre_grasp_offset
+    def next_phase(
+        phase, timer, pos, rot, q, pre, grasp_point, side, lower, hole_xy, carry_z, held
+    ):
+        """The state machine's transitions at this observation (see the module docstring)."""
         tool, y_axis = rot[:, 2], rot[:, 1]
         y_goal = jnp.where(fo.dot(y_axis, side) >= 0, side, -side)
         aligned = (fo.norm(tool - up) < 0.05) & (fo.norm(y_goal - y_axis) < 0.05)
         jaw_open = q[gripper_joint] > 0.9 * gripper_open
         lower_err_xy = fo.norm(lower[:2] - hole_xy)
-        carry_z = top_z + carry_clearance
         near_pre = (fo.norm(pos[:2] - pre[:2]) < 0.003) & (jnp.abs(pos[2] - pre[2]) < 0.005)
         steps = [
             (APPROACH, near_pre & aligned),
@@ -150,12 +128,15 @@ def insert_expert(
         for p, cond in steps:
             phase = jnp.where((phase == p) & cond, p + 1, phase)
         phase = jnp.where((phase >= LIFT) & ~held, APPROACH, phase)
+        return phase, timer, y_goal
 
-        # ---- targets -----------------------------------------------------------------------
+    def position_error(phase, pos, pre, grasp_point, lower, hole_xy, carry_z, top_z):
+        """The controlled point (the grasp site, or the held tube's lower end from the lift
+        on) and its step towards the phase's target, limited per phase."""
+
         def over_hole(z):
             return jnp.append(hole_xy, z)
 
-        # Lift/carry/align/insert move the tube's lower end; before that, the grasp site.
         targets = jnp.stack(
             [
                 pre,
@@ -170,8 +151,7 @@ def insert_expert(
         )
         fine, ins = fine_step_m, insert_step_m
         step_limit = jnp.array([max_step_m, fine, fine, fine, fine, fine, fine, ins])[phase]
-        carrying = phase >= LIFT
-        point = jnp.where(carrying, lower, pos)
+        point = jnp.where(phase >= LIFT, lower, pos)
         raw = targets[phase] - point
         # Inserting, the descent is slow but the sideways correction is not slowed with it.
         err = jnp.where(
@@ -179,9 +159,15 @@ def insert_expert(
             jnp.append(_limit(raw[:2], fine_step_m), jnp.clip(raw[2], -ins, ins)),
             _limit(raw, step_limit),
         )
+        return point, err
+
+    def joint_step(phase, pos, rot, jp, jr, point, err, axis, y_goal, n):
+        """One damped least-squares step: the point's error, the axis held vertical and,
+        before the grasp, the roll, weighted; clipped per joint."""
+        tool, y_axis = rot[:, 2], rot[:, 1]
         # Jacobians of the controlled point and axis (a point rigidly attached to the gripper).
         r = point - pos
-        cur_axis = jnp.where(carrying, axis, tool)
+        cur_axis = jnp.where(phase >= LIFT, axis, tool)
         jpt = jnp.stack([jp[:, i] + fo.cross(jr[:, i], r) for i in range(n)], 1)
         jax_ = jnp.stack([fo.cross(jr[:, i], cur_axis) for i in range(n)], 1)
         axis_err = _limit(up - cur_axis, max_tilt_step)
@@ -199,7 +185,36 @@ def insert_expert(
         b = fo.matmul(jpt.T, err) + orient_weight * (
             fo.matmul(jax_.T, axis_err) + fo.matmul(jy.T, y_err)
         )
-        dq = jnp.clip(fo.solve_spd(a, b), -max_joint_step, max_joint_step)
+        return jnp.clip(fo.solve_spd(a, b), -max_joint_step, max_joint_step)
+
+    def act(params, pstate, obs, key):
+        del params, key
+        phase, timer = pstate
+        q = part(obs, "joint_pos")
+        tube, block = part(obs, "tube_pos"), part(obs, "block_pos")
+        axis = quat_axis_z(part(obs, "tube_quat"))
+        axis = jnp.where(axis[2] < 0, -axis, axis)  # the tube is symmetric: take the upper end
+        lower = tube - axis * (tube_length / 2)
+        hole_xy, top_z = block[:2], block[2] + block_height / 2
+
+        pos, rot, jp, jr = fk(q)
+        # The jaws' free side (the fingers' width, grasp-site y) is held radial, so the open
+        # jaws reach the tube from the pan axis' side.
+        radial = tube[:2] - pan_xy
+        side = jnp.append(-radial / jnp.maximum(fo.norm(radial), 1e-6), 0.0)
+        grasp_point = lower + axis * grasp_height
+        rel = pos - tube
+        off_axis = fo.norm(rel - axis * fo.dot(rel, axis))
+        held = (off_axis < 0.008) & (
+            jnp.abs(fo.dot(rel, axis) - (grasp_height - tube_length / 2)) < 0.02
+        )
+        pre = grasp_point + side * pre_grasp_offset
+        carry_z = top_z + carry_clearance
+        phase, timer, y_goal = next_phase(
+            phase, timer, pos, rot, q, pre, grasp_point, side, lower, hole_xy, carry_z, held
+        )
+        point, err = position_error(phase, pos, pre, grasp_point, lower, hole_xy, carry_z, top_z)
+        dq = joint_step(phase, pos, rot, jp, jr, point, err, axis, y_goal, q.shape[0])
         action = (q + dq)[actuator_joint]
         grip = jnp.array([0.0, gripper_open, gripper_open, *[gripper_closed] * 5])[phase]
         action = action.at[gripper_actuator].set(grip)

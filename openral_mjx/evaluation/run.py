@@ -38,6 +38,12 @@ from openral_mjx.stats.intervals import wilson_interval
 from openral_mjx.stats.sequential import RULE
 
 
+def _worker_versions(scene: Scene) -> dict[str, str]:
+    """A host scene's simulator versions (its workers' environment), else nothing."""
+    versions = getattr(scene.backend, "worker_versions", None)
+    return versions() if versions is not None else {}
+
+
 def build_scene(
     name: str,
     options: Mapping[str, Any] | None = None,
@@ -477,7 +483,7 @@ def _report(
                 else {}
             ),
         },
-        versions=package_versions(),
+        versions={**package_versions(), **_worker_versions(scene)},
         command=spec.command,
         created_at=dt.datetime.now(dt.UTC).isoformat(timespec="seconds"),
         episodes=episodes,

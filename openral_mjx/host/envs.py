@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import dataclasses
 import fcntl
+import functools
 import hashlib
 import json
 import os
@@ -130,6 +131,61 @@ def is_ready(name: str) -> bool:
         return json.loads(marker.read_text()).get("digest") == recipe.digest()
     except (OSError, ValueError):
         return False
+
+
+# The simulators and the packages under them that decide a host scene's result, as reported
+# by the worker environment that ran it (`worker_versions`): distribution name -> module.
+WORKER_PACKAGES = {
+    "mujoco": "mujoco",
+    "metaworld": "metaworld",
+    "hf-libero": "libero",
+    "robosuite": "robosuite",
+    "gym-pusht": "gym_pusht",
+    "gym-aloha": "gym_aloha",
+    "dm-control": "dm_control",
+    "mani-skill": "mani_skill",
+    "sapien": "sapien",
+    "gymnasium": "gymnasium",
+    "lerobot": "lerobot",
+    "torch": "torch",
+    "numpy": "numpy",
+}
+_VERSIONS_SCRIPT = """
+import importlib.metadata as md, importlib.util as iu, json, sys
+out = {}
+for dist, module in json.loads(sys.argv[1]).items():
+    if iu.find_spec(module) is None:
+        continue
+    try:
+        out[dist] = md.version(dist)
+    except md.PackageNotFoundError:
+        continue
+    if module == "mujoco":  # a package put first on the path (`our_mujoco_path`) wins
+        import mujoco
+        out[dist] = mujoco.__version__
+print(json.dumps(out))
+"""
+
+
+@functools.cache
+def worker_versions(python: str, path_first: tuple[str, ...] = ()) -> dict[str, str]:
+    """The versions of `WORKER_PACKAGES` installed for interpreter `python` (with `path_first`
+    first on its path, as its workers run), for reports: what a host scene's simulator ran on.
+    Empty if the interpreter cannot say."""
+    env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "VIRTUAL_ENV")}
+    if path_first:
+        env["PYTHONPATH"] = os.pathsep.join(path_first)
+    try:
+        out = subprocess.run(
+            [python, "-c", _VERSIONS_SCRIPT, json.dumps(WORKER_PACKAGES)],
+            capture_output=True,
+            text=True,
+            timeout=120,
+            env=env,
+        )
+        return dict(json.loads(out.stdout)) if out.returncode == 0 else {}
+    except (OSError, subprocess.TimeoutExpired, ValueError):
+        return {}
 
 
 def our_mujoco_path(python: str) -> str:

@@ -35,6 +35,7 @@ import numpy as np
 from openral_mjx.core.errors import ConfigError
 from openral_mjx.core.options import check
 from openral_mjx.host.batch import BatchConfig, EnvBatch
+from openral_mjx.host.envs import worker_versions
 from openral_mjx.host.pool import RemoteError, WorkerFailure, host_callback
 from openral_mjx.scenes.base import Scene, State
 
@@ -152,6 +153,12 @@ class HostBackend:
         n = self._batch.n or 1
         where = " on Ray" if self._batch.nodes else ""
         return f"cpu: {self.n_workers(n)} worker processes{where} ({self._env_name} environment)"
+
+    def worker_versions(self) -> dict[str, str]:
+        """The simulator's package versions in the workers' environment (`envs.worker_versions`),
+        prefixed ``worker `` for the report's `versions`."""
+        found = worker_versions(self._python, self._spec.batch.path_first)
+        return {f"worker {name}": version for name, version in found.items()}
 
     def describe(self) -> dict[str, Any]:
         b = self._spec.batch

@@ -112,7 +112,8 @@ def test_metaworld_on_our_mujoco_and_the_mirror_agree_step_for_step_from_the_cli
     code on the evaluator's MuJoCo), the mirror on `c`, then `compare`: the expert's episodes
     pair seed by seed with the same outcome at the same step. door-lock is a task whose steps
     the MuJoCo version moves (on MetaWorld's pinned 3.3 the same seeds succeed ~50 steps
-    sooner, checked here too), so the option is what makes them equal."""
+    sooner, checked here too), so the option is what makes them equal. Each report records
+    the MuJoCo its workers ran."""
     from openral_mjx import compare as compare_cli
     from openral_mjx import eval as eval_cli
     from openral_mjx.report import load_report
@@ -140,4 +141,9 @@ def test_metaworld_on_our_mujoco_and_the_mirror_agree_step_for_step_from_the_cli
 
     mirror = steps("mirror")
     assert min(mirror) > 0 and steps("ours") == mirror
+    # each MetaWorld report says which MuJoCo its workers ran
+    import mujoco
+
+    assert load_report(out["ours"]).versions["worker mujoco"] == mujoco.__version__
+    assert load_report(out["pinned"]).versions["worker mujoco"] == "3.3.0"
     assert np.median(np.subtract(mirror, steps("pinned"))) > 20

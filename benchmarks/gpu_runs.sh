@@ -11,7 +11,9 @@ ev() { local name=$1; shift; { time python3 -m openral_mjx.eval "$@" --out "$out
 # NVIDIA's MPS daemon (MPS=1): lets processes on one GPU run their kernels side by side
 mps_start() { [ "${MPS:-0}" = 1 ] || return 0
   export CUDA_MPS_PIPE_DIRECTORY=/tmp/mps-pipe CUDA_MPS_LOG_DIRECTORY=/tmp/mps-log
-  mkdir -p /tmp/mps-pipe /tmp/mps-log && nvidia-cuda-mps-control -d; }
+  # a daemon left by an earlier call that was stopped is reused, not an error
+  mkdir -p /tmp/mps-pipe /tmp/mps-log && { nvidia-cuda-mps-control -d 2>/dev/null \
+    || [ -e /tmp/mps-pipe/control ]; }; }
 mps_stop() { [ "${MPS:-0}" = 1 ] && echo quit | nvidia-cuda-mps-control; return 0; }
 mw_tasks() { python3 -c "from openral_mjx.scenes import scene_suite as s; print(*s('metaworld_mjx', '${SUITE:-mt10}'))"; }
 case ${1:?stage} in

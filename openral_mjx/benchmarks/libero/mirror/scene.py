@@ -62,6 +62,7 @@ from openral_mjx.benchmarks.libero.mirror.goal import Goal
 from openral_mjx.benchmarks.libero.mirror.options import LiberoMjxOptions
 from openral_mjx.core.errors import ConfigError
 from openral_mjx.physics import (
+    PhysicsBackend,
     PhysicsSettings,
     PhysicsState,
     Quantities,
@@ -201,7 +202,37 @@ class LiberoMjx(Scene):
         # first shipped initial state. The MJCF's own qpos0 piles the objects at the origin.
         self.spec.add_key(name="reference", qpos=t.init_states[0][1 : 1 + compiled.nq])
         self.goal = Goal.build(t.goal, compiled)
-        self.backend = make_backend(
+        self.backend = self._make_backend(backend, settings)
+        m = self.mj_model
+        self.n_substeps = int(meta["n_substeps"])
+        self.observed_substep = int(meta["observation_substep"])
+        # The 0-based physics step whose readout draws the cameras: robosuite draws the poses
+        # its observed step computed before integrating, those of the state one step earlier.
+        # `warp`'s readout after a step holds those same poses (`mjx.step`'s forward pass,
+        # as `mj_step`'s), so it draws the observed step itself; `c` draws the state a step
+        # ends in (`c_render`), so it draws the step before.
+        self.drawn_substep = self.observed_substep - (2 if self.backend.name == "c" else 1)
+        if cameras and self.drawn_substep < 0:
+            raise ConfigError(
+                f"LIBERO task {o.task}: robosuite observes physics step {self.observed_substep}"
+                " of a control step; the mirror's cameras on c draw one step before it (>= 2)"
+            )
+        self.dynamics = RobotDynamics(self.spec, compiled, meta["arm_joints"], meta["eef_site"])
+        self._index_robot(m)
+        self.gains = gains(t, m.actuator_ctrlrange, self._grip_act)
+        self._load_states(m)
+        frames = expert_frames(t.goal)
+        bodies = self.backend.quantity_spec.bodies
+        self._expert = None if frames is None else [bodies.index(b) for b in frames]
+        sizes = {"state": STATE_SIZE, **({"expert": EXPERT_SIZE} if o.expert else {})}
+        self._layout = {} if cameras else obs_slices(sizes)
+        self._obs_sizes = sizes
+
+    def _make_backend(self, backend: str, settings: PhysicsSettings | None) -> PhysicsBackend:
+        """The physics of the task's model: the end effector and the goal's bodies, sites and
+        contacts read out, LIBERO's two cameras where `image_size` is set."""
+        meta, o = self.export.meta, self.options
+        return make_backend(
             backend,
             self.spec,
             QuantitySpec(
@@ -224,21 +255,10 @@ class LiberoMjx(Scene):
             1,  # the controller acts at every physics step; `step` runs them
             settings,
         )
-        m = self.mj_model
-        self.n_substeps = int(meta["n_substeps"])
-        self.observed_substep = int(meta["observation_substep"])
-        # The 0-based physics step whose readout draws the cameras: robosuite draws the poses
-        # its observed step computed before integrating, those of the state one step earlier.
-        # `warp`'s readout after a step holds those same poses (`mjx.step`'s forward pass,
-        # as `mj_step`'s), so it draws the observed step itself; `c` draws the state a step
-        # ends in (`c_render`), so it draws the step before.
-        self.drawn_substep = self.observed_substep - (2 if self.backend.name == "c" else 1)
-        if cameras and self.drawn_substep < 0:
-            raise ConfigError(
-                f"LIBERO task {o.task}: robosuite observes physics step {self.observed_substep}"
-                " of a control step; the mirror's cameras on c draw one step before it (>= 2)"
-            )
-        self.dynamics = RobotDynamics(self.spec, compiled, meta["arm_joints"], meta["eef_site"])
+
+    def _index_robot(self, m: mujoco.MjModel) -> None:
+        """The robot's joints (qpos, dofs) and actuators in the model, by the export's names."""
+        meta = self.export.meta
         joint = lambda n: m.joint(n)  # noqa: E731
         self._robot_qpos = np.array([joint(n).qposadr[0] for n in self.dynamics.qpos_names])
         self._robot_dofs = np.array([joint(n).dofadr[0] for n in self.dynamics.qpos_names])
@@ -248,7 +268,11 @@ class LiberoMjx(Scene):
         arm_act = np.array([m.actuator(n).id for n in meta["arm_actuators"]])
         grip_act = np.array([m.actuator(n).id for n in meta["gripper_actuators"]])
         self._arm_act, self._grip_act = arm_act, grip_act
-        self.gains = gains(t, m.actuator_ctrlrange, grip_act)
+
+    def _load_states(self, m: mujoco.MjModel) -> None:
+        """The task's initial states (shipped or drawn: `initial_states`), its settle steps,
+        robosuite's stale controller state, and the fixtures' per-state poses."""
+        t, o, meta = self.export, self.options, self.export.meta
         states, fixture_ids, fixture_pos, fixture_quat = initial_states(t, o)
         states = np.asarray(states, np.float64)
         self._init_qpos = jnp.asarray(states[:, 1 : 1 + m.nq], jnp.float32)
@@ -268,12 +292,6 @@ class LiberoMjx(Scene):
         )
         self._stale_first = bool(meta["stale_pending"])
         self._fixtures = fixture_fields(t, m, fixture_ids, fixture_pos, fixture_quat)
-        frames = expert_frames(t.goal)
-        bodies = self.backend.quantity_spec.bodies
-        self._expert = None if frames is None else [bodies.index(b) for b in frames]
-        sizes = {"state": STATE_SIZE, **({"expert": EXPERT_SIZE} if o.expert else {})}
-        self._layout = {} if cameras else obs_slices(sizes)
-        self._obs_sizes = sizes
 
     # ---- layout ---------------------------------------------------------------------------
 

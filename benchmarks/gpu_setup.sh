@@ -36,7 +36,8 @@ fi
 # LIBERO's task exports, carried as .libero_models (physics; see docs/libero_mjx.md), are copied
 # to /tmp/libero_models so later calls need not carry them again; the tasks' visual files
 # (meshes, textures: ~250 MB for the four suites' 40 tasks, too large for one call) come as
-# xz-compressed tar parts in .vis1, .vis2, ... and are unpacked into its files/ folder.
+# xz-compressed tar parts in .vis1, .vis2, ... (benchmarks/libero_visual_parts.sh makes them)
+# and are unpacked into its files/ folder.
 export OPENRAL_MJX_LIBERO_MODELS=${OPENRAL_MJX_LIBERO_MODELS:-/tmp/libero_models}
 if [ -d .libero_models ] && [ ! -f "$OPENRAL_MJX_LIBERO_MODELS/.copied" ]; then
   mkdir -p "$OPENRAL_MJX_LIBERO_MODELS" && cp -r .libero_models/. "$OPENRAL_MJX_LIBERO_MODELS/" \

@@ -111,24 +111,24 @@ def evaluate_suite(
             )
         else:
             _suite_in_turn(scene, policy, todo, options, spec, on_task, on_chunk, reports)
-    except RunFailed as e:
-        if not (reports or earlier):
-            raise
-        finished = tasks[: len(tasks) - len(todo) + len(reports)]
-        partial = PartialInfo(str(e), "tasks", len(finished), len(tasks), finished)
-        blocks = [*([earlier] if earlier else []), *reports]
-        raise RunFailed(str(e), merge_reports(blocks, suite, policy, spec.command, partial)) from e
     except BaseException as e:
-        signal = stop_signal(e)
-        if signal is None or not (reports or earlier):
+        stop = stop_signal(e)
+        failed = isinstance(e, RunFailed)
+        if (stop is None and not failed) or not (reports or earlier):
             raise
+        # what finished, as a partial report: the suite's first tasks
         finished = tasks[: len(tasks) - len(todo) + len(reports)]
-        partial = partial_info(signal, "tasks", finished, len(tasks))
+        if failed:
+            partial = PartialInfo(str(e), "tasks", len(finished), len(tasks), finished)
+        else:
+            partial = partial_info(stop, "tasks", finished, len(tasks))
         blocks = [*([earlier] if earlier else []), *reports]
         merged = merge_reports(blocks, suite, policy, spec.command, partial)
         if ray_run is not None:
             merged = dataclasses.replace(merged, cluster=ray_run.info())
-        raise Interrupted(signal, merged) from e
+        if failed:
+            raise RunFailed(str(e), merged) from e
+        raise Interrupted(stop, merged) from e
     merged = merge_reports([*([earlier] if earlier else []), *reports], suite, policy, spec.command)
     return merged if ray_run is None else dataclasses.replace(merged, cluster=ray_run.info())
 
@@ -295,8 +295,11 @@ def _suite_in_processes(
     start = time.perf_counter()
     ended: dict[int, EvalReport] = {}
     processes = min(task_processes, len(tasks))
-    while len(reports) + len(ended) < len(tasks):
-        todo = [i for i in range(len(reports), len(tasks)) if i not in ended]
+
+    def unfinished() -> list[int]:
+        return [i for i in range(len(reports), len(tasks)) if i not in ended]
+
+    while todo := unfinished():
         processes = min(processes, len(todo))
         died = _run_pool(
             scene,
@@ -314,7 +317,7 @@ def _suite_in_processes(
         )
         if died is None:
             break
-        left = [tasks[i] for i in range(len(reports), len(tasks)) if i not in ended]
+        left = [tasks[i] for i in unfinished()]
         if processes == 1:
             raise RunFailed(f"task {left[0]}'s process {died}")
         processes //= 2

@@ -188,11 +188,13 @@ def worker_versions(python: str, path_first: tuple[str, ...] = ()) -> dict[str, 
         return {}
 
 
+@functools.cache
 def our_mujoco_path(python: str) -> str:
     """A directory holding only a link to this process's `mujoco` package, to put first on a
     worker's import path so that the simulator there runs on the evaluator's MuJoCo instead of
     its pinned one (`python`, the worker's interpreter, must be this Python version: the
-    package is compiled). Kept under `envs_root()` per MuJoCo version and interpreter."""
+    package is compiled). Kept under `envs_root()` per MuJoCo version and interpreter, and
+    checked once per process."""
     import mujoco
 
     from openral_mjx.core.errors import ConfigError

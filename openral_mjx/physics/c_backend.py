@@ -227,10 +227,9 @@ class CBackend(PhysicsBackend):
             # keeps the float64 original. A rounded position can move a resting contact off
             # its exact zero distance and change how an object slides (`_exact_fields`).
             value = _exact_fields(value, nominal)
-            shape = nominal.shape
             written = self._written.get(name)
             if written is None or len(written) < len(self._env_models):
-                grown = np.full((len(self._env_models), *shape), np.nan)  # NaN: not known
+                grown = np.full((len(self._env_models), *nominal.shape), np.nan)  # NaN: not known
                 if written is not None:
                     grown[: len(written)] = written
                 written = self._written[name] = grown

@@ -67,6 +67,7 @@ EVAL = [
     (["--video", "100000000000000000000"], "100000000000000000000"),
     (["--frames", "100000000000000000000"], "100000000000000000000"),
     (["--scene", "metaworld", "--suite", "mt10", "--task-processes", "100000"], "100000"),
+    (["--scene", "metaworld", "--opt", "mujoco=pinned"], "mujoco='pinned'; valid: metaworld, ours"),
     (["--target-halfwidth", "0.1", "--max-episodes", "1000000000000000"], "1000000000000000"),
     (["--factor-bins", "x"], "'x'"),
     # a flag a suite cannot honour is refused, never recorded in the command and ignored

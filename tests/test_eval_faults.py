@@ -202,6 +202,30 @@ def test_stop_pool_ends_running_task_processes():
     assert not any(p.is_alive() for p in processes)
 
 
+class _ReapedLate:
+    """A pool process whose exit code the pool's own thread has not stored yet: `exitcode`
+    reads None until a few `join`s have passed (the race a CI run lost once)."""
+
+    def __init__(self, code: int, joins_before: int) -> None:
+        self.code, self.joins_left = code, joins_before
+
+    @property
+    def exitcode(self) -> int | None:
+        return None if self.joins_left else self.code
+
+    def join(self, timeout: float | None = None) -> None:
+        self.joins_left = max(0, self.joins_left - 1)
+
+
+def test_a_dead_task_process_is_named_by_its_signal_even_when_reaped_late():
+    """The one-line error names the signal although the exit code arrives late; the pool's
+    SIGTERM to the other processes is not the cause; no code at all reads 'ended abruptly'."""
+    late = [_ReapedLate(-signal.SIGKILL, 3), _ReapedLate(-signal.SIGTERM, 1)]
+    assert suite_module._death(late).startswith("was killed by SIGKILL")
+    assert suite_module._death([_ReapedLate(3, 2)]) == "exited with code 3"
+    assert suite_module._death([_ReapedLate(1, 10**9)], wait_s=0.2) == "ended abruptly"
+
+
 def test_diverging_run_counts_mujoco_warnings(monkeypatch, capfd, tmp_path):
     """An arm whose joints have negative damping diverges in every env: the episodes count as
     diverged, MuJoCo's per-occurrence warnings become one summary line and report counts, and

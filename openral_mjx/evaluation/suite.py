@@ -374,8 +374,15 @@ def _run_pool(
     return None
 
 
-def _death(workers: list[multiprocessing.process.BaseProcess]) -> str:
-    """How the pool's process died, from its exit code ("was killed by SIGKILL ...")."""
+def _death(workers: list[multiprocessing.process.BaseProcess], wait_s: float = 10.0) -> str:
+    """How the pool's process died, from its exit code ("was killed by SIGKILL ...").
+
+    The pool's own thread reaps its processes too: a `waitpid` that loses that race reads
+    no code for a moment, so this waits (up to `wait_s`) until every code is known."""
+    deadline = time.monotonic() + wait_s
+    while any(w.exitcode is None for w in workers) and time.monotonic() < deadline:
+        for w in workers:
+            w.join(timeout=0.05)
     codes = sorted({w.exitcode for w in workers if w.exitcode not in (None, 0)})
     # the pool ends the others with SIGTERM once one is gone: that one's code tells
     told = [c for c in codes if c != -signal.SIGTERM] or codes

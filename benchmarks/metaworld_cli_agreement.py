@@ -54,6 +54,14 @@ def pair(cmp: Path) -> dict[str, Any]:
     }
 
 
+def _has_seeds(report: Path, seeds: int) -> bool:
+    """Whether `report` exists, complete, for seeds 0..`seeds`-1."""
+    if not report.exists():
+        return False
+    r = json.loads(report.read_text())
+    return r["partial"] is None and r["seed"] == 0 and r["n_episodes"] == seeds
+
+
 def task_row(task: str, seeds: int, out: Path, oracles: list[str]) -> dict[str, Any]:
     """MetaWorld on the `oracles`' MuJoCos, the mirror, and their comparisons for `task`."""
     # at most 100 envs at once (a MetaWorld env holds its own model: ~20 MB each in a worker)
@@ -61,18 +69,9 @@ def task_row(task: str, seeds: int, out: Path, oracles: list[str]) -> dict[str, 
     common = ["--task", task, "--policy", "metaworld-expert", *batch]
     common += ["--no-breakdown"]
     mirror = out / f"{task}_mirror.json"
-    run(
-        [
-            "openral_mjx.eval",
-            "--scene",
-            "metaworld_mjx",
-            "--backend",
-            "c",
-            *common,
-            "--out",
-            str(mirror),
-        ]
-    )
+    if not _has_seeds(mirror, seeds):  # a later oracle's run reuses an earlier run's mirror
+        mirror_argv = ["openral_mjx.eval", "--scene", "metaworld_mjx", "--backend", "c"]
+        run([*mirror_argv, *common, "--out", str(mirror)])
     row: dict[str, Any] = {"task": task, "seeds": seeds}
     for name in oracles:
         opts = ORACLES[name]
@@ -120,17 +119,19 @@ def main() -> int:
     args = parser.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
     rows_path = args.out / "agreement.jsonl"
-    done = {}
+    done: dict[str, dict[str, Any]] = {}  # a task's rows at these seeds, merged in order
     if rows_path.exists():
-        done = {r["task"]: r for r in map(json.loads, rows_path.read_text().splitlines())}
+        for r in map(json.loads, rows_path.read_text().splitlines()):
+            if r["seeds"] == args.seeds:
+                done.setdefault(r["task"], {}).update(r)
     tasks = args.tasks or scene_suite("metaworld_mjx", args.suite)
     for i, task in enumerate(tasks, 1):
-        if task in done and done[task]["seeds"] == args.seeds:
+        if all(o in done.get(task, {}) for o in args.oracles):
             continue
         row = task_row(task, args.seeds, args.out, args.oracles)
         with rows_path.open("a") as f:
             f.write(json.dumps(row) + "\n")
-        done[task] = row
+        done.setdefault(task, {}).update(row)
         rates = ", ".join(f"{o} {100 * row[o]['agreement']:.1f}%" for o in args.oracles)
         print(f"[{i}/{len(tasks)}] {task}: per-seed agreement {rates}", flush=True)
     rows = [done[t] for t in tasks if t in done]

@@ -65,10 +65,12 @@ json.dump(d, open(sys.argv[2], 'w'), indent=1)" /tmp/mw_suite.json "$out/mw_suit
       python3 benchmarks/metaworld_mirror.py "$m" --tasks ${TASKS:-$(mw_tasks)} --seeds "$n" \
         --workers "$(nproc)" --out "$out/metaworld_host.jsonl" | tail -2 | cut -c1-200
     done ;;
-  mw-raw)      # issue 20: evaluator vs raw physics on the mirror, per task group
+  mw-raw)      # issue 20: evaluator vs raw physics on the mirror, per task group (PROFILE=1:
+               # a traced second run of each, GPU kernel time by kind in the row; issue 38)
     for t in ${TASKS:-reach-v3 push-v3 door-open-v3}; do
       python3 benchmarks/metaworld_mirror.py raw --tasks "$t" --backend ${BACKEND:-warp} \
-        --n ${N:-4096 65536} --max-steps ${MAX_STEPS:-500} --out "$out/metaworld_raw.jsonl" | tail -2 | cut -c1-250
+        --n ${N:-4096 65536} --max-steps ${MAX_STEPS:-500} --out "$out/metaworld_raw.jsonl" \
+        ${PROFILE:+--profile "$out/profile"} | tail -2 | cut -c1-250
     done ;;
   mw-poses-cost)  # issue 20: what observing the state the step ends in costs: the evaluator
                   # against raw physics with the fix and without it (--poses-before-step)
@@ -94,6 +96,20 @@ ts = s('metaworld_mjx', '${SUITE:-mt50}'); print(*sorted(ts, key=lambda t: not T
         done ) &
     done
     wait; cat "$d"/mjx_check_*.jsonl | wc -l ;;
+  mw-mjx-peak)  # issue 38: mjx on the GPU, PROCS task processes at once (each plans for 1/PROCS
+                # of the card, as a suite's task processes do): per task the batch that fits
+                # SEEDS (1000) envs' request, XLA's estimate, the allocator's peak, compile time
+    tasks=(${TASKS:-$(mw_tasks)}); P=${PROCS:-10}
+    export XLA_PYTHON_CLIENT_PREALLOCATE=false
+    for i in $(seq 0 $((P - 1))); do
+      ( for ((j = i; j < ${#tasks[@]}; j += P)); do
+          timeout "${TASK_S:-540}" python3 benchmarks/metaworld_mirror.py mjx-peak --backend mjx \
+            --tasks "${tasks[j]}" --seeds ${SEEDS:-1000} --max-steps ${MAX_STEPS:-5} --share "$P" \
+            --out "$out/mjx_peak.jsonl" >> "$out/mjx_peak_$i.log" 2>&1 \
+            || echo "${tasks[j]}: failed or cut ($?)" >> "$out/mjx_peak_$i.log"
+        done ) &
+    done
+    wait; cut -c1-330 "$out/mjx_peak.jsonl"; grep -h "failed or cut" "$out"/mjx_peak_*.log ;;
   mw-agree)    # issue 20: the mirror on the GPU against MetaWorld on the CPU, same seeds
     python3 -m openral_mjx.benchmarks.metaworld.agreement --tasks ${TASKS:-reach-v3 push-v3 \
       pick-place-v3 door-open-v3 drawer-close-v3} --backend ${BACKEND:-warp} --seeds 500 \

@@ -22,6 +22,8 @@ evaluator's mocap targets and gripper controls from the same reset states. `conc
 process per task on the same GPU; each compiles and warms up, then runs its `--seeds` episodes
 alone, one task after another, and then all at once: episodes/s of the tasks one at a time
 against all together, measured by the same processes on the same compiled programs.
+`mjx-peak`: per task, the episode on one process's share of the GPU (`--share`): the batch
+that fits, XLA's memory estimate, the allocator's peak, compile time.
 `mjx-check`: per task, the mirror on `mjx` against `c` from the same reset vectors under the
 same random actions (observation differences, MJX compile time): that every task builds,
 compiles and steps on `mjx`. `mjx-forward`: one env's `mjx.forward` on the mjx model, its
@@ -39,11 +41,14 @@ import argparse
 import json
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import jax
 import jax.numpy as jnp
 import numpy as np
+from gpu_trace import kernel_summary
 
 from openral_mjx.benchmarks.metaworld.mirror import task as mw
 from openral_mjx.evaluation import build_scene, run_evaluation
@@ -52,6 +57,7 @@ from openral_mjx.policies.mlp import MlpConfig, init_params, mlp_policy, save_ml
 from openral_mjx.runner import run_seeds
 from openral_mjx.runner.compile_cache import enable_compilation_cache
 from openral_mjx.runner.episode import seed_keys
+from openral_mjx.runner.memory import share_devices
 from openral_mjx.scenes import scene_suite
 
 HIDDEN = (256, 256, 256)
@@ -239,9 +245,12 @@ def mirror_inputs(scene, actions: jax.Array) -> tuple[jax.Array, jax.Array]:
     return jax.lax.scan(step, start, actions)[1]
 
 
-def raw_ceiling(scene, actions: np.ndarray, max_steps: int) -> tuple[float, float]:
-    """(compile s, control steps/s) of a bare `vmap(scan(mjx.step))` replaying the mocap
-    targets and gripper controls of `actions` (n, T, 4) from the same reset states."""
+def raw_ceiling(
+    scene, actions: np.ndarray, max_steps: int
+) -> tuple[float, float, Callable[[], Any]]:
+    """(compile s, control steps/s, a second run) of a bare `vmap(scan(mjx.step))` replaying
+    the mocap targets and gripper controls of `actions` (n, T, 4) from the same reset
+    states."""
     from openral_mjx.physics.mjx_backend import mjx
     from openral_mjx.runner.episode import seed_keys
 
@@ -274,9 +283,10 @@ def raw_ceiling(scene, actions: np.ndarray, max_steps: int) -> tuple[float, floa
     t = time.perf_counter()
     compiled = fn.lower(data, fields, mocap, ctrl).compile()
     compile_s = time.perf_counter() - t
+    again = lambda: jax.block_until_ready(compiled(data, fields, mocap, ctrl))  # noqa: E731
     t = time.perf_counter()
-    jax.block_until_ready(compiled(data, fields, mocap, ctrl))
-    return compile_s, n * max_steps / (time.perf_counter() - t)
+    again()
+    return compile_s, n * max_steps / (time.perf_counter() - t), again
 
 
 def raw(args: argparse.Namespace) -> None:
@@ -294,7 +304,23 @@ def raw(args: argparse.Namespace) -> None:
                 record=("actions",),
             )
             evaluator = n * args.max_steps / timing.run_s
-            raw_compile, ceiling = raw_ceiling(scene, arrays["actions"], args.max_steps)
+            raw_compile, ceiling, again = raw_ceiling(scene, arrays["actions"], args.max_steps)
+            profile = {}
+            if args.profile is not None:  # second runs, traced: kernel time by kind
+                where = args.profile / f"{task}_{n}"
+                with jax.profiler.trace(where / "evaluator", create_perfetto_trace=True):
+                    run_seeds(
+                        scene,
+                        policy,
+                        policy.init(None, None)[0],
+                        seeds=np.arange(n),
+                        n_envs=n,
+                        max_steps=args.max_steps,
+                        record=("actions",),
+                    )
+                with jax.profiler.trace(where / "raw", create_perfetto_trace=True):
+                    again()
+                profile = {k: kernel_summary(where / k) for k in ("evaluator", "raw")}
             emit(
                 args.out,
                 {
@@ -311,9 +337,52 @@ def raw(args: argparse.Namespace) -> None:
                     "evaluator_over_raw": evaluator / ceiling,
                     "evaluator_compile_s": timing.compile_s,
                     "raw_compile_s": raw_compile,
+                    **({"profile": profile} if profile else {}),
                 },
             )
             scene.close()
+
+
+def mjx_peak(args: argparse.Namespace) -> None:
+    """Per task: the episode compiled for `--seeds` envs on this process's share of the GPU
+    (`--share` processes at once, as a suite's task processes plan), the batch that fits it,
+    XLA's estimate of the episode's memory at that batch, the allocator's peak, and
+    `--max-steps` steps of every seed run in batches of that size."""
+    share_devices(args.share)
+    for task in tasks_of(args.tasks):
+        t = time.perf_counter()
+        scene = build_scene("metaworld_mjx", {"task": task}, backend=args.backend)
+        policy = mlp(scene)
+        arrays, timing = run_seeds(
+            scene,
+            policy,
+            policy.init(None, None)[0],
+            seeds=np.arange(args.seeds),
+            n_envs=args.seeds,
+            max_steps=args.max_steps,
+        )
+        emit(
+            args.out,
+            {
+                "kind": "mjx-peak",
+                "task": task,
+                "backend": args.backend,
+                "device": str(jax.devices()[0].device_kind),
+                "share": args.share,
+                "requested_envs": args.seeds,
+                "fitted_envs": timing.n_envs,
+                "estimate_bytes": timing.bytes_per_device,
+                "bytes_per_env": (timing.bytes_per_device or 0) / timing.n_envs,
+                "peak_bytes_in_use": (jax.devices()[0].memory_stats() or {}).get(
+                    "peak_bytes_in_use"
+                ),
+                "compile_s": timing.compile_s,
+                "run_s": timing.run_s,
+                "diverged": int(np.sum(arrays["diverged"])),
+                "wall_s": time.perf_counter() - t,
+            },
+        )
+        scene.close()
 
 
 def mjx_check(args: argparse.Namespace) -> None:
@@ -515,6 +584,7 @@ def main() -> int:
             "save-mlp",
             "mjx-check",
             "mjx-forward",
+            "mjx-peak",
         ),
     )
     parser.add_argument("--tasks", nargs="+", default=["mt10"])
@@ -528,6 +598,13 @@ def main() -> int:
     parser.add_argument("--sync", type=Path, help=argparse.SUPPRESS)  # `child` only
     parser.add_argument("--index", type=int, help=argparse.SUPPRESS)
     parser.add_argument("--poses-before-step", action="store_true", help="see module doc")
+    parser.add_argument("--share", type=int, default=1, help="`mjx-peak`: processes at once")
+    parser.add_argument(
+        "--profile",
+        type=Path,
+        help="`raw`: trace a second run of each under jax.profiler into this folder and add "
+        "GPU kernel time by kind (MuJoCo-Warp's, XLA's, copies) to the row",
+    )
     parser.add_argument(
         "--max-contact-points", type=int, help="`mjx-forward`: MJX's cap instead of the mirror's"
     )
@@ -546,7 +623,7 @@ def main() -> int:
     print(" ".join(["python", *sys.argv]), flush=True)
     modes = {"mirror": mirror, "host": host, "host-direct": host_direct, "raw": raw}
     modes |= {"concurrent": concurrent, "child": child, "save-mlp": save_random_mlp}
-    modes |= {"mjx-check": mjx_check, "mjx-forward": mjx_forward}
+    modes |= {"mjx-check": mjx_check, "mjx-forward": mjx_forward, "mjx-peak": mjx_peak}
     modes[args.what](args)
     return 0
 

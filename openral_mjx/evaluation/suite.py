@@ -43,6 +43,7 @@ from openral_mjx.evaluation.spec import RunSpec
 from openral_mjx.policies import Policy, make_policy
 from openral_mjx.report import EvalReport, PartialInfo, PartPlacement
 from openral_mjx.runner.compile_cache import enable_compilation_cache
+from openral_mjx.runner.memory import share_devices
 from openral_mjx.scenes import scene_suite
 from openral_mjx.stats import wilson_interval
 
@@ -179,10 +180,12 @@ def _close(policy: Policy | None) -> None:
         policy.close()
 
 
-def _start_task_process(compile_cache: Path | None) -> None:
-    """A task process: allocate GPU memory as needed (several share the GPU), not 75% of it
-    up front, and cache compiled programs where the parent does."""
+def _start_task_process(compile_cache: Path | None, processes: int = 1) -> None:
+    """A task process, one of `processes` at once: allocate GPU memory as needed (they share
+    the GPU), not 75% of it up front, size batches for its share of the memory, and cache
+    compiled programs where the parent does."""
     os.environ["XLA_PYTHON_CLIENT_PREALLOCATE"] = "false"
+    share_devices(processes)
     if compile_cache is not None:
         enable_compilation_cache(compile_cache)
 
@@ -349,7 +352,7 @@ def _run_pool(
         max_workers=processes,
         mp_context=multiprocessing.get_context("spawn"),
         initializer=_start_task_process,
-        initargs=(compile_cache,),
+        initargs=(compile_cache, processes),
     )
     try:
         futures = {

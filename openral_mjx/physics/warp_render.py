@@ -147,6 +147,70 @@ def render_model(model: mujoco.MjModel, texels: int = 0) -> mujoco.MjModel:
     return out
 
 
+def _spot_factor(model: mujoco.MjModel, data: mujoco.MjData, light: int, at: np.ndarray) -> float:
+    """How much of light `light` reaches point `at` in MuJoCo's renderer: its distance
+    attenuation and, for a spot, its cone (OpenGL's cutoff and exponent)."""
+    kind = int(model.light_type[light])
+    if kind == int(mujoco.mjtLightType.mjLIGHT_DIRECTIONAL):
+        return 1.0
+    to_point = at - data.light_xpos[light]
+    dist = float(np.linalg.norm(to_point))
+    a0, a1, a2 = (float(x) for x in model.light_attenuation[light])
+    factor = 1.0 / max(a0 + a1 * dist + a2 * dist * dist, mujoco.mjMINVAL)
+    if kind == int(mujoco.mjtLightType.mjLIGHT_SPOT):
+        cos = float(np.dot(to_point / max(dist, mujoco.mjMINVAL), data.light_xdir[light]))
+        if cos < np.cos(np.deg2rad(float(model.light_cutoff[light]))):
+            return 0.0
+        factor *= max(cos, 0.0) ** float(model.light_exponent[light])
+    return factor
+
+
+def gl_material_terms(model: mujoco.MjModel) -> tuple[np.ndarray, np.ndarray]:
+    """(mat_emission, mat_specular) that make MuJoCo-Warp's lighting of textured materials
+    come out as MuJoCo's renderer's.
+
+    MuJoCo's renderer (OpenGL's fixed-function lighting, the texture modulating the lit
+    colour) multiplies the specular term by the texture; MuJoCo-Warp adds it unmodulated,
+    and skips it where the shininess is 0. There OpenGL's term does not depend on the view
+    (exponent 0): specular x each light's specular colour x how much of the light reaches
+    the surface, times the texture, which is what MuJoCo-Warp's emission term draws. So a
+    textured material with shininess 0 gets that much emission, evaluated where the first
+    geom with the material sits in the model's initial pose (LIBERO's tables: specular 0.2,
+    shininess 0, drawn 22/255 darker without it). Elsewhere a textured material's specular
+    is scaled by its texture's mean colour, the average of OpenGL's modulation. Untextured
+    materials are unchanged. Light colours are averaged over the channels."""
+    emission = np.array(model.mat_emission, np.float32)
+    specular = np.array(model.mat_specular, np.float32)
+    textures = model.mat_texid.max(axis=1)
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)  # light and geom poses (mj_camlight)
+    lights = [i for i in range(model.nlight) if model.light_active[i]]
+    head = float(np.mean(model.vis.headlight.specular)) if model.vis.headlight.active else 0.0
+    for mat in np.flatnonzero((textures >= 0) & (specular > 0)):
+        tex = int(textures[mat])
+        if model.mat_shininess[mat] > 0:
+            specular[mat] *= _mean_texel(model, tex)
+            continue
+        geoms = np.flatnonzero(model.geom_matid == mat)
+        at = data.geom_xpos[geoms[0]] if len(geoms) else np.zeros(3)
+        reach = sum(
+            float(np.mean(model.light_specular[i])) * _spot_factor(model, data, i, at)
+            for i in lights
+        )
+        emission[mat] += specular[mat] * (head + reach)
+    return emission, specular
+
+
+def _mean_texel(model: mujoco.MjModel, tex: int) -> float:
+    """Texture `tex`'s mean colour (its RGB channels averaged, in [0, 1], linear values)."""
+    a, nch = int(model.tex_adr[tex]), int(model.tex_nchannel[tex])
+    w, h = int(model.tex_width[tex]), int(model.tex_height[tex])
+    texels = model.tex_data[a : a + w * h * nch].reshape(-1, nch)[:, : min(3, nch)]
+    if model.tex_colorspace[tex] == int(mujoco.mjtColorSpace.mjCOLORSPACE_SRGB):
+        texels = srgb_to_linear(texels)
+    return float(np.mean(texels)) / 255.0
+
+
 # MuJoCo's `mjtCamLight` modes, as the ints `MjModel.light_mode` holds.
 _FIXED, _TRACK, _TRACKCOM, _TARGET, _TARGETCOM = range(5)
 
@@ -242,6 +306,11 @@ class WarpCameras:
         self.groups = specs[0].groups
         rgb = [s for s in specs if isinstance(s, RgbSpec)]
         self.style = rgb[0].style if rgb else RgbStyle()
+        if self.style.textures and mj_model.nmat:  # the renderer reads materials from `mx`
+            emission, specular = gl_material_terms(mj_model)
+            self.mx = mx.replace(
+                mat_emission=jnp.asarray(emission), mat_specular=jnp.asarray(specular)
+            )
         cams: dict[int, _Camera] = {}
         for s in specs:
             cid = camera_id(mj_model, s.camera)

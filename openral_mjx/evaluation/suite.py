@@ -296,6 +296,7 @@ def _suite_in_processes(
     new pool of half as many processes, with a warning. One that dies running alone raises
     `RunFailed`. A task's episodes do not depend on its process, so a restart changes none."""
     start = time.perf_counter()
+    pool = _TaskPool(scene, policy, tasks, options or {}, spec, compile_cache, on_task, run_task)
     ended: dict[int, EvalReport] = {}
     processes = min(task_processes, len(tasks))
 
@@ -304,20 +305,7 @@ def _suite_in_processes(
 
     while todo := unfinished():
         processes = min(processes, len(todo))
-        died = _run_pool(
-            scene,
-            policy,
-            tasks,
-            todo,
-            options,
-            spec,
-            processes,
-            compile_cache,
-            on_task,
-            reports,
-            ended,
-            run_task,
-        )
+        died = pool.run(todo, processes, reports, ended)
         if died is None:
             break
         left = [tasks[i] for i in unfinished()]
@@ -332,49 +320,61 @@ def _suite_in_processes(
     _spread_wall_time(reports, time.perf_counter() - start, policy)
 
 
-def _run_pool(
-    scene: str,
-    policy: str,
-    tasks: list[str],
-    todo: list[int],
-    options: Mapping[str, Any] | None,
-    spec: RunSpec,
-    processes: int,
-    compile_cache: Path | None,
-    on_task: Callable[[int, int, str], None] | None,
-    reports: list[EvalReport],
-    ended: dict[int, EvalReport],
-    run_task: Callable[..., EvalReport],
-) -> str | None:
-    """Tasks `todo` in a pool of `processes`: each report into `ended`, then into `reports`
-    once the tasks before it have theirs. None, or how a process died (the pool then ends)."""
-    pool = concurrent.futures.ProcessPoolExecutor(
-        max_workers=processes,
-        mp_context=multiprocessing.get_context("spawn"),
-        initializer=_start_task_process,
-        initargs=(compile_cache, processes),
-    )
-    try:
-        futures = {
-            pool.submit(run_task, scene, tasks[i], policy, options or {}, spec): i for i in todo
-        }
-        workers = list(getattr(pool, "_processes", {}).values())  # all started by now
-        for future in concurrent.futures.as_completed(futures):
-            i = futures[future]
-            try:
-                ended[i] = future.result()
-            except concurrent.futures.process.BrokenProcessPool:
-                stop_pool(pool)
-                return _death(workers)
-            while len(reports) in ended:
-                reports.append(ended.pop(len(reports)))
-            if on_task is not None:
-                on_task(len(ended) + len(reports), len(tasks), tasks[i])
-    except BaseException:
-        stop_pool(pool)
-        raise
-    pool.shutdown()
-    return None
+@dataclasses.dataclass(frozen=True)
+class _TaskPool:
+    """What every pool of a suite's task processes runs: `run_task(scene, task, policy,
+    options, spec)` per task, in processes that cache compiled programs in `compile_cache`;
+    `on_task(done, total, task)` as each ends."""
+
+    scene: str
+    policy: str
+    tasks: list[str]
+    options: Mapping[str, Any]
+    spec: RunSpec
+    compile_cache: Path | None
+    on_task: Callable[[int, int, str], None] | None
+    run_task: Callable[..., EvalReport]
+
+    def run(
+        self,
+        todo: list[int],
+        processes: int,
+        reports: list[EvalReport],
+        ended: dict[int, EvalReport],
+    ) -> str | None:
+        """Tasks `todo` in a pool of `processes`: each report into `ended`, then into
+        `reports` once the tasks before it have theirs. None, or how a process died (the
+        pool then ends)."""
+        pool = concurrent.futures.ProcessPoolExecutor(
+            max_workers=processes,
+            mp_context=multiprocessing.get_context("spawn"),
+            initializer=_start_task_process,
+            initargs=(self.compile_cache, processes),
+        )
+        try:
+            futures = {
+                pool.submit(
+                    self.run_task, self.scene, self.tasks[i], self.policy, self.options, self.spec
+                ): i
+                for i in todo
+            }
+            workers = list(getattr(pool, "_processes", {}).values())  # all started by now
+            for future in concurrent.futures.as_completed(futures):
+                i = futures[future]
+                try:
+                    ended[i] = future.result()
+                except concurrent.futures.process.BrokenProcessPool:
+                    stop_pool(pool)
+                    return _death(workers)
+                while len(reports) in ended:
+                    reports.append(ended.pop(len(reports)))
+                if self.on_task is not None:
+                    self.on_task(len(ended) + len(reports), len(self.tasks), self.tasks[i])
+        except BaseException:
+            stop_pool(pool)
+            raise
+        pool.shutdown()
+        return None
 
 
 def _death(workers: list[multiprocessing.process.BaseProcess], wait_s: float = 10.0) -> str:

@@ -11,7 +11,7 @@ mirror's own `c` images of the same states (what `warp` changes of MuJoCo's rend
 
 ``python -m openral_mjx.benchmarks.libero.render --tasks libero_spatial/0 --seeds 0 1 2``
 prints the table (markdown) and writes its rows as JSON with ``--out``; ``--backend warp``
-draws the mirror's images on `warp`.
+draws the mirror's images on `warp` (``--image-samples 2``: 2 x 2 sub-pixel samples).
 """
 
 from __future__ import annotations
@@ -119,11 +119,13 @@ def mirror_images(
 
 
 def backend_images(
-    task: str, backend: str, image_size: int, ref: dict[str, np.ndarray]
+    task: str, backend: str, image_size: int, ref: dict[str, np.ndarray], samples: int = 1
 ) -> dict[str, np.ndarray]:
-    """The mirror's images on `backend` of the states of `ref` (`libero_states`)."""
+    """The mirror's images on `backend` of the states of `ref` (`libero_states`), `samples`
+    sub-pixel samples per axis on `warp`."""
     settings = scene_settings("libero_mjx", batch_size=max(1, len(ref["qpos"])))
-    options = LiberoMjxOptions(task=task, image_size=image_size)
+    samples = samples if backend == "warp" else 1
+    options = LiberoMjxOptions(task=task, image_size=image_size, image_samples=samples)
     scene = LiberoMjx(options, backend=backend, settings=settings)
     try:
         return mirror_images(scene, ref["qpos"], ref["qvel"], ref["init"])
@@ -141,6 +143,7 @@ def task_rows(
     image_size: int = 128,
     backend: str = "c",
     against: str = "libero",
+    samples: int = 1,
 ) -> list[dict[str, Any]]:
     """One row per camera of `task`: the mirror's images on `backend` against LIBERO's
     (`against` ``libero``) or the mirror's on another backend (``c``), over seeds x steps 0,
@@ -153,7 +156,7 @@ def task_rows(
     # robosuite draws the state that physics step `observed - 1` (1-based) ends in
     drawn = int(load_task(task).meta["observation_substep"]) - 1
     ref = libero_states(task, seeds, steps, every, image_size, drawn)
-    ours = backend_images(task, backend, image_size, ref)
+    ours = backend_images(task, backend, image_size, ref, samples)
     theirs = ref if against == "libero" else backend_images(task, against, image_size, ref)
     return [
         {
@@ -162,6 +165,7 @@ def task_rows(
             "mjcf_camera": cam,
             "image_size": image_size,
             "backend": backend,
+            "samples": samples if backend == "warp" else 1,
             "against": against,
             "states": len(ref["qpos"]),
             **pixel_agreement(ours[key], theirs[key]),
@@ -203,11 +207,16 @@ def main(argv: Sequence[str] | None = None) -> None:
         default="libero",
         help="compare with LIBERO's images or the mirror's on this backend",
     )
+    ap.add_argument(
+        "--image-samples", type=int, default=1, help="warp's sub-pixel samples per axis"
+    )
     ap.add_argument("--out", type=Path, default=None, help="JSON file for the rows")
     a = ap.parse_args(argv)
     rows: list[dict[str, Any]] = []
     for task in a.tasks:
-        rows += task_rows(task, a.seeds, a.steps, a.every, a.image_size, a.backend, a.against)
+        rows += task_rows(
+            task, a.seeds, a.steps, a.every, a.image_size, a.backend, a.against, a.image_samples
+        )
         print("\n".join(format_table(rows).splitlines()[-2:]), flush=True)
         if a.out is not None:
             write_text_atomic(a.out, json.dumps(rows, indent=1))

@@ -12,6 +12,7 @@ from openral_mjx.benchmarks.libero import render
 from openral_mjx.benchmarks.libero.assets import load_task
 from openral_mjx.benchmarks.libero.host_scene import LiberoOptions, init_state_count
 from openral_mjx.benchmarks.libero.mirror import LiberoMjx, LiberoMjxOptions
+from openral_mjx.benchmarks.libero.mirror.scene import libero_style
 from openral_mjx.core.errors import ConfigError
 
 TASK = "libero_spatial/0"  # 87 contacts after the settle, the stove, bowls and a cabinet
@@ -78,6 +79,13 @@ def test_camera_options_are_checked_before_any_export() -> None:
         LiberoMjx(LiberoMjxOptions(image_size=32), backend="mjx")
     with pytest.raises(ConfigError, match="render backend='mjx'"):
         render.task_rows(TASK, [0], backend="mjx")
+    with pytest.raises(ConfigError, match=r"option image_samples=5: must be 1 to 4"):
+        LiberoMjxOptions(image_size=32, image_samples=5)
+    with pytest.raises(ConfigError, match="option image_samples=2 needs image_size"):
+        LiberoMjxOptions(image_samples=2)
+    with pytest.raises(ConfigError, match=r"image_samples=2 sets MuJoCo-Warp's .* not 'c'"):
+        LiberoMjx(LiberoMjxOptions(image_size=32, image_samples=2), backend="c")
+    assert libero_style(128, 2).samples == 2 and libero_style(128).samples == 1
 
 
 @pytest.mark.worker

@@ -22,6 +22,9 @@ class LiberoMjxOptions:
     observes the host scene's dict, ``image`` (agentview) and ``wrist_image``
     (robot0_eye_in_hand) square RGB uint8 turned upright as lerobot's LIBERO env turns them,
     beside ``state`` and ``expert`` (backend `c`: MuJoCo's renderer; `warp`: MuJoCo-Warp's).
+    `image_samples` (`warp` only): sub-pixel samples per axis, averaged, as MuJoCo's
+    multisampled renderer smooths thin lines and edges; 2 draws 4 times per image and brings
+    warp's images closer to LIBERO's (docs/libero_mjx.md, "Cameras on warp").
     `protocol` and `sampled_states` choose the initial states as on the host scene:
     ``standard`` (LIBERO's 50 shipped ones) or ``sampled`` (LIBERO's own reset draws, numpy
     seeded with s mod `sampled_states`)."""
@@ -30,6 +33,7 @@ class LiberoMjxOptions:
     max_steps: int | None = None
     expert: bool = True
     image_size: int | None = None
+    image_samples: int = 1
     protocol: str = "standard"
     sampled_states: int = SAMPLED_STATES
 
@@ -38,6 +42,14 @@ class LiberoMjxOptions:
         check_protocol(self.protocol, self.sampled_states)
         if self.image_size is not None:
             check(self.image_size >= 8, f"option image_size={self.image_size}: must be >= 8")
+        check(
+            1 <= self.image_samples <= 4,
+            f"option image_samples={self.image_samples}: must be 1 to 4 (samples per axis)",
+        )
+        check(
+            self.image_samples == 1 or self.image_size is not None,
+            f"option image_samples={self.image_samples} needs image_size (the cameras)",
+        )
         if self.max_steps is not None:
             check(self.max_steps >= 1, f"option max_steps={self.max_steps}: must be >= 1")
 

@@ -92,9 +92,11 @@ LIBERO_GROUPS = (1, 2)
 TEXELS_PER_PIXEL = 0.5
 
 
-def libero_style(image_size: int) -> RgbStyle:
-    """How the mirror's cameras are drawn at `image_size` (see `TEXELS_PER_PIXEL`)."""
-    return dataclasses.replace(LIBERO_STYLE, texels=max(1, round(TEXELS_PER_PIXEL * image_size)))
+def libero_style(image_size: int, samples: int = 1) -> RgbStyle:
+    """How the mirror's cameras are drawn at `image_size` (see `TEXELS_PER_PIXEL`), with
+    `samples` sub-pixel samples per axis on `warp`."""
+    texels = max(1, round(TEXELS_PER_PIXEL * image_size))
+    return dataclasses.replace(LIBERO_STYLE, texels=texels, samples=samples)
 
 
 def axis_angle(quat_wxyz: jax.Array) -> jax.Array:
@@ -191,6 +193,12 @@ class LiberoMjx(Scene):
                 f"libero_mjx option image_size renders on backend c (MuJoCo's renderer) or "
                 f"warp (MuJoCo-Warp's), not {resolve_backend_name(backend)!r}"
             )
+        if o.image_samples != 1 and resolve_backend_name(backend) != "warp":
+            raise ConfigError(
+                f"libero_mjx option image_samples={o.image_samples} sets MuJoCo-Warp's "
+                f"samples: backend warp, not {resolve_backend_name(backend)!r} (c draws with "
+                "MuJoCo's renderer, multisampled as LIBERO's)"
+            )
         self.export = t = load_task(o.task)
         self.spec = physics_spec(t, visuals=cameras)
         self.mjx_changes: dict[str, int] = {}
@@ -246,7 +254,7 @@ class LiberoMjx(Scene):
                         o.image_size,
                         name=key,
                         groups=LIBERO_GROUPS,
-                        style=libero_style(o.image_size),
+                        style=libero_style(o.image_size, o.image_samples),
                     )
                     for key, cam in CAMERAS.items()
                     if o.image_size is not None

@@ -181,7 +181,7 @@ def gl_material_terms(model: mujoco.MjModel) -> tuple[np.ndarray, np.ndarray]:
     materials are unchanged. Light colours are averaged over the channels."""
     emission = np.array(model.mat_emission, np.float32)
     specular = np.array(model.mat_specular, np.float32)
-    textures = model.mat_texid.max(axis=1)
+    textures = model.mat_texid[:, int(mujoco.mjtTextureRole.mjTEXROLE_RGB)]
     data = mujoco.MjData(model)
     mujoco.mj_forward(model, data)  # light and geom poses (mj_camlight)
     lights = [i for i in range(model.nlight) if model.light_active[i]]

@@ -17,7 +17,8 @@ every world. Lights are placed in the data by MuJoCo's `mj_camlight`, which `mjx
 kinematics alone does not: `WarpCameras.place` puts them (and the cameras, fixed to their body
 or tracking it) for the first frame. How RGB is drawn (textures and skybox, shadows,
 anti-aliasing) is the specs' `RgbStyle`, one per render context. sRGB textures are decoded
-to linear values first, as MuJoCo's renderer samples them (`render_model`).
+to linear values first, as MuJoCo's renderer samples them (`render_model`), and textured
+materials' specular is handed over as OpenGL applies it (`gl_material_terms`).
 """
 
 from __future__ import annotations

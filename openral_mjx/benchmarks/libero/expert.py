@@ -1,9 +1,10 @@
 """`libero-expert`: a scripted pick-and-place policy for LIBERO tasks, from privileged state.
 
-It plays the goal's first pick-and-place atom (``On``, ``In``): grasp the object, carry it
-over the target, lower it and let go. It reads the observation's ``state`` (lerobot's 8
-floats: end-effector position first) and ``expert`` entry (the object's position, the target
-body's position and orientation; on both the `libero` host scene and the `libero_mjx` mirror),
+It plays the goal's pick-and-place atoms (``On``, ``In``; the first two) one after another:
+grasp the object, carry it over the target, lower it, let go and rise. It reads the
+observation's ``state`` (lerobot's 8 floats: end-effector position first) and ``expert``
+entry (per atom, the object's position, the target body's position and orientation; on both
+the `libero` host scene and the `libero_mjx` mirror),
 and acts as a pure JAX function of them, so the same seed plays the same actions on LIBERO and
 on the mirror for as long as their states agree: the closed-loop oracle of the mirror's
 agreement table.
@@ -19,11 +20,12 @@ task's model (the mirror's export, `assets.load_task`) at LIBERO's initial state
   at: the object's bottom 2 cm above the target's top (its highest colliding geom, or the
   region's top face).
 
-Phases (the policy state): approach above the grasp point, descend, close the gripper, lift,
-carry over the target, lower, open, retreat. Position targets become OSC deltas
+Phases (the policy state, with the atom being played): approach above the grasp point,
+descend, close the gripper, lift, carry over the target, lower, open, retreat; after the
+retreat, the next atom's approach. Position targets become OSC deltas
 (``(target - eef) / 0.05``, clipped to [-1, 1]: robosuite scales a unit action to 5 cm); the
-orientation is held (zero rotation). Tasks whose goal has no pick-and-place atom (opening,
-closing, turning on or off) and goals of several atoms beyond the first are not covered:
+orientation is held (zero rotation). Atoms that are not pick-and-place (opening, closing,
+turning on or off) are not played: a goal with one succeeds only where it already holds.
 `coverage` says which a task is.
 """
 
@@ -39,7 +41,13 @@ import mujoco
 import numpy as np
 
 from openral_mjx.benchmarks.libero.assets import load_task, physics_spec
-from openral_mjx.benchmarks.libero.export import EXPERT_SIZE, expert_frames
+from openral_mjx.benchmarks.libero.export import (
+    ATOM_SIZE,
+    EXPERT_ATOMS,
+    EXPERT_SIZE,
+    PICK_KINDS,
+    expert_frames,
+)
 from openral_mjx.core.errors import ConfigError
 from openral_mjx.core.rotations import quat_to_mat
 from openral_mjx.physics.contact_sensors import in_subtree
@@ -54,16 +62,22 @@ CARRY = 0.12  # carrying height over the release height
 APPROACH, DESCEND, CLOSE, LIFT, CARRY_OVER, LOWER, OPEN, RETREAT = range(8)
 GRIPPER_STEPS = 15  # control steps the gripper gets to close or open
 PHASE_LIMIT = 80  # control steps after which a moving phase gives up waiting and goes on
+RETREATED = 0.01  # how near the retreat point the hand is before the next atom's approach
 
 
 @dataclasses.dataclass(frozen=True)
 class Plan:
-    """The per-task constants the expert plays with (see the module docstring)."""
+    """The per-task constants the expert plays with (see the module docstring), one row per
+    pick-and-place atom it plays, in the goal's order."""
 
-    grasp: np.ndarray  # grasp point relative to the object's origin, world axes (3,)
-    site_pos: np.ndarray  # the target point in the target body's frame (3,)
-    release_z: float  # object-origin height over the target point when let go
+    grasp: np.ndarray  # grasp point relative to the object's origin, world axes (atoms, 3)
+    site_pos: np.ndarray  # the target point in the target body's frame (atoms, 3)
+    release_z: np.ndarray  # object-origin height over the target point when let go (atoms,)
     coverage: str
+
+    @property
+    def atoms(self) -> int:
+        return len(self.release_z)
 
 
 def _colliding_box(m: mujoco.MjModel, d: mujoco.MjData, body: int) -> tuple[np.ndarray, ...]:
@@ -98,22 +112,35 @@ def closing_axis(m: mujoco.MjModel, d: mujoco.MjData, finger_joint: str) -> np.n
 def plan_for(task: str) -> Plan | None:
     """Task ``suite/index``'s plan, or None where its goal has no pick-and-place atom."""
     export = load_task(task)
-    frames = expert_frames(export.goal)
-    if frames is None:
+    if expert_frames(export.goal) is None:
         return None
-    atom = next(a for a in export.goal if a["kind"] in ("on_object", "on_site", "in_site"))
     m = physics_spec(export).compile()
     d = mujoco.MjData(m)
     state = np.asarray(export.init_states[0], np.float64)
     d.qpos[:] = state[1 : 1 + m.nq]
     mujoco.mj_forward(m, d)
-    obj, target = (m.body(n).id for n in frames)
+    axis = closing_axis(m, d, export.meta["gripper_joints"][0])
+    picks = [a for a in export.goal if a["kind"] in PICK_KINDS][:EXPERT_ATOMS]
+    rows = [_atom_plan(m, d, atom, axis) for atom in picks]
+    others = [a for a in export.goal if a["kind"] != "true" and a not in picks]
+    return Plan(
+        grasp=np.stack([r[0] for r in rows]).astype(np.float32),
+        site_pos=np.stack([r[1] for r in rows]).astype(np.float32),
+        release_z=np.array([r[2] for r in rows], np.float32),
+        coverage="pick-and-place atoms of several" if others else "covered",
+    )
+
+
+def _atom_plan(
+    m: mujoco.MjModel, d: mujoco.MjData, atom: dict[str, Any], axis: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, float]:
+    """One pick-and-place atom's grasp point, target point and release height."""
+    obj = m.body(atom["obj"]).id
+    target = m.body(atom.get("target") or atom["site_body"]).id
     low, high = _colliding_box(m, d, obj)
     origin = d.xpos[obj]
-    middle = (low + high) / 2
-    axis = closing_axis(m, d, export.meta["gripper_joints"][0])
     width = float((high - low) @ axis)
-    grasp = middle - origin
+    grasp = (low + high) / 2 - origin
     if width > FINGER_GAP:  # the rim on the closing axis, 1 cm in from the edge
         grasp = grasp + axis * (width / 2 - 0.01)
     grasp[2] = high[2] - origin[2] - min(0.02, (high[2] - low[2]) / 2)
@@ -128,13 +155,7 @@ def plan_for(task: str) -> Plan | None:
         top = float(np.abs(rot @ np.asarray(atom["size"]))[2])
         if atom["kind"] == "on_site":
             top = float(atom["size"][2])
-    many = sum(a["kind"] != "true" for a in export.goal) > 1
-    return Plan(
-        grasp=grasp.astype(np.float32),
-        site_pos=site_pos.astype(np.float32),
-        release_z=float(top + CLEARANCE + bottom),
-        coverage="first atom of several" if many else "covered",
-    )
+    return grasp, site_pos, float(top + CLEARANCE + bottom)
 
 
 def _mat(quat: Any) -> np.ndarray:
@@ -144,8 +165,9 @@ def _mat(quat: Any) -> np.ndarray:
 
 
 def coverage(task: str) -> str:
-    """Whether the expert plays `task`'s goal: ``covered``, ``first atom of several``, or
-    ``not covered`` (no pick-and-place atom)."""
+    """Whether the expert plays `task`'s goal: ``covered`` (every atom, each a
+    pick-and-place), ``pick-and-place atoms of several`` (it plays those; the others, such as
+    opening or turning on, it does not), or ``not covered`` (no pick-and-place atom)."""
     plan = plan_for(task)
     return "not covered" if plan is None else plan.coverage
 
@@ -156,14 +178,17 @@ def _toward(target: jax.Array, eef: jax.Array, gripper: float | jax.Array) -> ja
 
 
 def act(plan: Plan, state: jax.Array, expert: jax.Array, pstate: dict) -> tuple[jax.Array, dict]:
-    """One control step of the expert: the action and the next phase state."""
+    """One control step of the expert: the action and the next phase state. It plays the
+    plan's atoms one after another: after the retreat from one, the next one's approach."""
     eef = state[:3]
-    obj, target_pos, target_quat = expert[:3], expert[3:6], expert[6:10]
-    phase, count = pstate["phase"], pstate["count"]
-    grasp = obj + jnp.asarray(plan.grasp)
-    goal = target_pos + quat_to_mat(target_quat) @ jnp.asarray(plan.site_pos)
+    phase, count, atom = pstate["phase"], pstate["count"], pstate["atom"]
+    row = jax.lax.dynamic_slice(expert, (atom * ATOM_SIZE,), (ATOM_SIZE,))
+    obj, target_pos, target_quat = row[:3], row[3:6], row[6:10]
+    grasp = obj + jnp.asarray(plan.grasp)[atom]
+    goal = target_pos + quat_to_mat(target_quat) @ jnp.asarray(plan.site_pos)[atom]
     held = obj - eef  # the object's origin relative to the hand, once held
-    release = jnp.concatenate([goal[:2] - held[:2], goal[2:] + plan.release_z - held[2:]])
+    release_z = jnp.asarray(plan.release_z)[atom]
+    release = jnp.concatenate([goal[:2] - held[:2], goal[2:] + release_z - held[2:]])
     carry = release[2] + CARRY
     targets = jnp.stack(
         [
@@ -187,12 +212,19 @@ def act(plan: Plan, state: jax.Array, expert: jax.Array, pstate: dict) -> tuple[
     reached = jnp.array([0.01, 0.006, 0.0, 0.015, 0.01, 0.008, 0.0, 0.0])[phase]
     timed = jnp.array([PHASE_LIMIT, 40, GRIPPER_STEPS, PHASE_LIMIT, PHASE_LIMIT, 40, 10, 10**6])
     advance = ((error < reached) | (count + 1 >= timed[phase])) & (phase < RETREAT)
-    next_phase = phase + advance.astype(jnp.int32)
+    # the next atom, once the hand is back up from this one (the last one's retreat holds)
+    next_atom = (
+        (phase == RETREAT)
+        & (atom + 1 < plan.atoms)
+        & ((error < RETREATED) | (count + 1 >= PHASE_LIMIT))
+    )
+    moved = advance | next_atom
     return action, {
-        "phase": next_phase,
-        "count": jnp.where(advance, 0, count + 1),
+        "phase": jnp.where(next_atom, APPROACH, phase + advance.astype(jnp.int32)),
+        "count": jnp.where(moved, 0, count + 1),
+        "atom": atom + next_atom.astype(jnp.int32),
         # where the hand holds still while the gripper moves: where it was when that began
-        "hold": jnp.where(advance, eef, pstate["hold"]),
+        "hold": jnp.where(moved, eef, pstate["hold"]),
     }
 
 
@@ -229,6 +261,7 @@ def libero_expert(scene: Any, arg: str | None) -> Policy:
         return None, {
             "phase": jnp.zeros((), jnp.int32),
             "count": jnp.zeros((), jnp.int32),
+            "atom": jnp.zeros((), jnp.int32),
             "hold": jnp.zeros(3, jnp.float32),
         }
 

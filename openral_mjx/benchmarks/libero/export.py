@@ -31,9 +31,13 @@ import numpy as np
 
 from openral_mjx.benchmarks.libero.worker_env import DUMMY_ACTION, SETTLE_STEPS, LiberoEnv
 
-# the ``expert`` observation entry: the moved object's position, its target body's position
-# and quaternion (`expert_frames`)
-EXPERT_SIZE = 10
+# the ``expert`` observation entry: per pick-and-place atom of the goal (the first
+# `EXPERT_ATOMS`), the moved object's position, its target body's position and quaternion
+# (`expert_frames`); zeros where the goal has fewer
+EXPERT_ATOMS = 2
+ATOM_SIZE = 10
+EXPERT_SIZE = EXPERT_ATOMS * ATOM_SIZE
+PICK_KINDS = ("on_object", "on_site", "in_site")
 # LIBERO's articulated objects' method for each joint predicate
 _METHODS = {"open": "is_open", "close": "is_close", "turnon": "turn_on", "turnoff": "turn_off"}
 
@@ -318,13 +322,27 @@ def goal_atoms(env: Any) -> list[dict[str, Any]]:
     return [_atom(env, atom[0].lower(), atom[1:]) for atom in goal]
 
 
-def expert_frames(atoms: list[dict[str, Any]]) -> tuple[str, str] | None:
-    """The bodies `libero-expert` watches: the object its first pick-and-place atom moves and
-    the body that atom's target is (or is fixed to); None where the goal has no such atom."""
-    for atom in atoms:
-        if atom["kind"] in ("on_object", "on_site", "in_site"):
-            return atom["obj"], atom.get("target") or atom["site_body"]
-    return None
+def expert_frames(atoms: list[dict[str, Any]]) -> list[tuple[str, str]] | None:
+    """The bodies `libero-expert` watches, per pick-and-place atom of the goal in its order
+    (at most `EXPERT_ATOMS`): the object the atom moves and the body its target is (or is
+    fixed to); None where the goal has no such atom."""
+    frames = [
+        (atom["obj"], atom.get("target") or atom["site_body"])
+        for atom in atoms
+        if atom["kind"] in PICK_KINDS
+    ]
+    return frames[:EXPERT_ATOMS] or None
+
+
+def expert_entry(positions: Any, quats: Any, ids: list[tuple[int, int]], xp: Any = np) -> Any:
+    """The ``expert`` entry from body `positions` (n, 3) and `quats` (n, 4) (numpy, or
+    jax.numpy as `xp`): per watched atom (object, target) body indices, the object's position
+    and the target's position and quaternion, zeros for the atoms the goal lacks."""
+    parts = [
+        xp.concatenate([positions[obj], positions[target], quats[target]]) for obj, target in ids
+    ]
+    parts += [xp.zeros(ATOM_SIZE, xp.float32)] * (EXPERT_ATOMS - len(ids))
+    return xp.concatenate([xp.asarray(p, xp.float32) for p in parts])
 
 
 def _body(env: Any, name: str) -> str:

@@ -8,10 +8,10 @@ Observation (lerobot's LIBERO convention): ``image`` (agent view) and ``wrist_im
 end-effector position (3), axis-angle (3) and gripper finger positions (2), float32. Action:
 7-D OSC pose delta and gripper command in [-1, 1]. Success: LIBERO's own goal predicates
 (`check_success`); the episode ends there. With ``expert`` on, the observation also has
-``expert``: the world position of the object the goal's first pick-and-place atom moves, and
-the position and orientation (w, x, y, z) of its target's body (`export.expert_frames`), as
-the last physics step leaves them in MuJoCo's data (10 floats; zeros where the goal has no
-such atom): what `libero-expert` reads.
+``expert``: per pick-and-place atom of the goal (the first two), the world position of the
+object the atom moves, and the position and orientation (w, x, y, z) of its target's body
+(`export.expert_frames`), as the last physics step leaves them in MuJoCo's data (10 floats
+per atom; zeros for atoms the goal lacks): what `libero-expert` reads.
 
 LIBERO asks interactively where to keep its files on first import unless its config exists;
 this module writes that config (LIBERO's default paths) first, and points LIBERO's assets at
@@ -86,16 +86,15 @@ class LiberoEnv:
 
             inner = self.env.env
             inner.reset()  # LIBERO parses the goal and places its objects at reset
-            frames = expert_frames(goal_atoms(inner)) or ()
-            self._expert_bodies = [inner.sim.model._model.body(n).id for n in frames]
+            body = inner.sim.model._model.body
+            frames = expert_frames(goal_atoms(inner)) or []
+            self._expert_bodies = [(body(o).id, body(t).id) for o, t in frames]
 
     def _expert(self) -> np.ndarray:
+        from openral_mjx.benchmarks.libero.export import expert_entry
+
         d = self.env.env.sim.data._data
-        ids = self._expert_bodies or []
-        if not ids:
-            return np.zeros(10, np.float32)
-        obj, target = ids
-        return np.concatenate([d.xpos[obj], d.xpos[target], d.xquat[target]]).astype(np.float32)
+        return expert_entry(d.xpos, d.xquat, self._expert_bodies or [])
 
     def _obs(self, raw: dict[str, Any]) -> dict[str, np.ndarray]:
         state = np.concatenate(

@@ -38,7 +38,8 @@ SEED = 0
 
 
 def expert_episode(scene: LiberoMjx) -> tuple[np.ndarray, np.ndarray, int]:
-    """(actions (T, 7), observations (T + 1, 18), the step success came at) of seed SEED."""
+    """(actions (T, 7), observations (T + 1, 8 + 20), the step success came at) of seed
+    SEED."""
     policy = make_policy("libero-expert", scene)
     _, pstate = policy.init(jax.random.PRNGKey(0), None)
     reset, step = jax.jit(scene.reset_with_seed), jax.jit(scene.step)
@@ -67,9 +68,27 @@ def test_expert_episode_replays_on_libero() -> None:
     assert worst < 2e-3 and worst_obj < 2e-3, (worst, worst_obj)
 
 
+@pytest.mark.heavy  # ~300 control steps on each side
+def test_two_atom_episode_replays_on_libero() -> None:
+    """`libero_10/4` (both mugs onto their plates): the expert plays one atom, then the
+    next, closed loop on the mirror; LIBERO succeeds at the same step on the same actions,
+    with the second atom's object where the mirror has it. Before the expert played every
+    pick-and-place atom it moved the first mug only, and the task never succeeded."""
+    task = "libero_10/4"
+    scene = LiberoMjx(LiberoMjxOptions(task=task), backend="c")
+    actions, obs, success_step = expert_episode(scene)
+    with libero_reference(task) as libero:
+        ref = libero.rollout(SEED % 50, actions)
+    assert int(np.argmax(ref["success"])) == success_step and ref["success"][-1]
+    second = float(np.abs(obs[:, 18:21] - ref["expert"][:, 10:13]).max())  # the second mug
+    assert second < 2e-3, second
+
+
 def test_coverage_names_what_the_expert_plays() -> None:
     assert coverage("libero_object/0") == "covered"  # In(soup, basket)
-    assert coverage("libero_10/3") == "first atom of several"  # bowl in drawer, drawer shut
+    assert coverage("libero_10/4") == "covered"  # On(mug, plate), On(mug, plate)
+    assert plan_for("libero_10/4").atoms == 2 and plan_for("libero_object/0").atoms == 1
+    assert coverage("libero_10/3") == "pick-and-place atoms of several"  # and the drawer shut
     assert coverage("libero_goal/0") == "not covered"  # open a drawer
     assert plan_for("libero_goal/0") is None
     # The factory reads the scene's name, options and task before anything else: a stand-in

@@ -21,9 +21,10 @@ reproduces of LIBERO's `OffScreenRenderEnv` (robosuite 1.4):
   float timer that comes round at the 24th of the 25 physics steps (the export measures
   which), reading the data that step leaves: the end-effector pose computed before its
   integration, the fingers' positions after it.
-- **Expert entry** (option ``expert``, on by default): the moved object's position and its
-  target body's pose (`export.expert_frames`), from the data the control step's last physics
-  step leaves, as the host scene's workers read them; what `libero-expert` plays from.
+- **Expert entry** (option ``expert``, on by default): per pick-and-place atom of the goal
+  (the first two), the moved object's position and its target body's pose
+  (`export.expert_frames`), from the data the control step's last physics step leaves, as the
+  host scene's workers read them; what `libero-expert` plays from.
 - **Cameras** (option ``image_size``, backend `c` or `warp`): ``image`` (agentview) and
   ``wrist_image`` (robot0_eye_in_hand) as the host scene gives them, drawn from the model with
   LIBERO's visual geoms, textures and lights by MuJoCo's renderer (`c`) or MuJoCo-Warp's batch
@@ -47,7 +48,7 @@ import mujoco
 import numpy as np
 
 from openral_mjx.benchmarks.libero.assets import TaskModel, load_sampled, load_task, physics_spec
-from openral_mjx.benchmarks.libero.export import EXPERT_SIZE, expert_frames
+from openral_mjx.benchmarks.libero.export import EXPERT_SIZE, expert_entry, expert_frames
 from openral_mjx.benchmarks.libero.host_scene import instruction as host_instruction
 from openral_mjx.benchmarks.libero.mirror.controller import (
     ControllerState,
@@ -229,9 +230,9 @@ class LiberoMjx(Scene):
         self._index_robot(m)
         self.gains = gains(t, m.actuator_ctrlrange, self._grip_act)
         self._load_states(m)
-        frames = expert_frames(t.goal)
         bodies = self.backend.quantity_spec.bodies
-        self._expert = None if frames is None else [bodies.index(b) for b in frames]
+        frames = expert_frames(t.goal) or []
+        self._expert = [(bodies.index(o), bodies.index(b)) for o, b in frames]
         sizes = {"state": STATE_SIZE, **({"expert": EXPERT_SIZE} if o.expert else {})}
         self._layout = {} if cameras else obs_slices(sizes)
         self._obs_sizes = sizes
@@ -476,11 +477,9 @@ class LiberoMjx(Scene):
         return {**images, **{k: jnp.zeros(n, jnp.float32) for k, n in self._obs_sizes.items()}}
 
     def _expert_entry(self, q: Quantities) -> jax.Array:
-        """The moved object's position, its target body's position and orientation."""
-        if self._expert is None:
-            return jnp.zeros(EXPERT_SIZE, jnp.float32)
-        obj, target = self._expert
-        return jnp.concatenate([q.body_pos[obj], q.body_pos[target], q.body_quat[target]])
+        """Per watched atom, the moved object's position, its target body's position and
+        orientation (`export.expert_entry`)."""
+        return expert_entry(q.body_pos, q.body_quat, self._expert, jnp)
 
     def _obs(self, physics: PhysicsState) -> jax.Array:
         q = physics.quantities

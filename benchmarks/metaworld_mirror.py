@@ -38,6 +38,7 @@ costs (one more kinematics pass per step).
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import sys
 import time
@@ -294,7 +295,8 @@ def raw(args: argparse.Namespace) -> None:
         for n in args.n:
             scene = build_scene("metaworld_mjx", {"task": task}, backend=args.backend, n_envs=n)
             policy = mlp(scene)
-            arrays, timing = run_seeds(
+            evaluate = functools.partial(
+                run_seeds,
                 scene,
                 policy,
                 policy.init(None, None)[0],
@@ -303,21 +305,14 @@ def raw(args: argparse.Namespace) -> None:
                 max_steps=args.max_steps,
                 record=("actions",),
             )
+            arrays, timing = evaluate()
             evaluator = n * args.max_steps / timing.run_s
             raw_compile, ceiling, again = raw_ceiling(scene, arrays["actions"], args.max_steps)
             profile = {}
             if args.profile is not None:  # second runs, traced: kernel time by kind
                 where = args.profile / f"{task}_{n}"
                 with jax.profiler.trace(where / "evaluator", create_perfetto_trace=True):
-                    run_seeds(
-                        scene,
-                        policy,
-                        policy.init(None, None)[0],
-                        seeds=np.arange(n),
-                        n_envs=n,
-                        max_steps=args.max_steps,
-                        record=("actions",),
-                    )
+                    evaluate()
                 with jax.profiler.trace(where / "raw", create_perfetto_trace=True):
                     again()
                 profile = {k: kernel_summary(where / k) for k in ("evaluator", "raw")}

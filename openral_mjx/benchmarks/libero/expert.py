@@ -41,13 +41,7 @@ import mujoco
 import numpy as np
 
 from openral_mjx.benchmarks.libero.assets import load_task, physics_spec
-from openral_mjx.benchmarks.libero.export import (
-    ATOM_SIZE,
-    EXPERT_ATOMS,
-    EXPERT_SIZE,
-    PICK_KINDS,
-    expert_frames,
-)
+from openral_mjx.benchmarks.libero.export import ATOM_SIZE, EXPERT_SIZE, pick_atoms
 from openral_mjx.core.errors import ConfigError
 from openral_mjx.core.rotations import quat_to_mat
 from openral_mjx.physics.contact_sensors import in_subtree
@@ -112,7 +106,8 @@ def closing_axis(m: mujoco.MjModel, d: mujoco.MjData, finger_joint: str) -> np.n
 def plan_for(task: str) -> Plan | None:
     """Task ``suite/index``'s plan, or None where its goal has no pick-and-place atom."""
     export = load_task(task)
-    if expert_frames(export.goal) is None:
+    picks = pick_atoms(export.goal)
+    if not picks:
         return None
     m = physics_spec(export).compile()
     d = mujoco.MjData(m)
@@ -120,7 +115,6 @@ def plan_for(task: str) -> Plan | None:
     d.qpos[:] = state[1 : 1 + m.nq]
     mujoco.mj_forward(m, d)
     axis = closing_axis(m, d, export.meta["gripper_joints"][0])
-    picks = [a for a in export.goal if a["kind"] in PICK_KINDS][:EXPERT_ATOMS]
     rows = [_atom_plan(m, d, atom, axis) for atom in picks]
     others = [a for a in export.goal if a["kind"] != "true" and a not in picks]
     return Plan(

@@ -322,16 +322,18 @@ def goal_atoms(env: Any) -> list[dict[str, Any]]:
     return [_atom(env, atom[0].lower(), atom[1:]) for atom in goal]
 
 
+def pick_atoms(atoms: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """The goal's pick-and-place atoms `libero-expert` plays, in its order (at most
+    `EXPERT_ATOMS`)."""
+    return [atom for atom in atoms if atom["kind"] in PICK_KINDS][:EXPERT_ATOMS]
+
+
 def expert_frames(atoms: list[dict[str, Any]]) -> list[tuple[str, str]] | None:
-    """The bodies `libero-expert` watches, per pick-and-place atom of the goal in its order
-    (at most `EXPERT_ATOMS`): the object the atom moves and the body its target is (or is
-    fixed to); None where the goal has no such atom."""
-    frames = [
-        (atom["obj"], atom.get("target") or atom["site_body"])
-        for atom in atoms
-        if atom["kind"] in PICK_KINDS
-    ]
-    return frames[:EXPERT_ATOMS] or None
+    """The bodies `libero-expert` watches, per atom of `pick_atoms`: the object the atom
+    moves and the body its target is (or is fixed to); None where the goal has no such
+    atom."""
+    frames = [(a["obj"], a.get("target") or a["site_body"]) for a in pick_atoms(atoms)]
+    return frames or None
 
 
 def expert_entry(positions: Any, quats: Any, ids: list[tuple[int, int]], xp: Any = np) -> Any:

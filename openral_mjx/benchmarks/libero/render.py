@@ -122,9 +122,8 @@ def backend_images(
     task: str, backend: str, image_size: int, ref: dict[str, np.ndarray], samples: int = 1
 ) -> dict[str, np.ndarray]:
     """The mirror's images on `backend` of the states of `ref` (`libero_states`), `samples`
-    sub-pixel samples per axis on `warp`."""
+    sub-pixel samples per axis (`warp` only)."""
     settings = scene_settings("libero_mjx", batch_size=max(1, len(ref["qpos"])))
-    samples = samples if backend == "warp" else 1
     options = LiberoMjxOptions(task=task, image_size=image_size, image_samples=samples)
     scene = LiberoMjx(options, backend=backend, settings=settings)
     try:
@@ -156,6 +155,7 @@ def task_rows(
     # robosuite draws the state that physics step `observed - 1` (1-based) ends in
     drawn = int(load_task(task).meta["observation_substep"]) - 1
     ref = libero_states(task, seeds, steps, every, image_size, drawn)
+    samples = samples if backend == "warp" else 1  # `c` draws with MuJoCo's multisampling
     ours = backend_images(task, backend, image_size, ref, samples)
     theirs = ref if against == "libero" else backend_images(task, against, image_size, ref)
     return [
@@ -165,7 +165,7 @@ def task_rows(
             "mjcf_camera": cam,
             "image_size": image_size,
             "backend": backend,
-            "samples": samples if backend == "warp" else 1,
+            "samples": samples,
             "against": against,
             "states": len(ref["qpos"]),
             **pixel_agreement(ours[key], theirs[key]),

@@ -80,9 +80,15 @@ class LiberoEnv:
         self.env = OffScreenRenderEnv(
             bddl_file_name=str(bddl), camera_heights=image_size, camera_widths=image_size
         )
-        self._expert_bodies: list[int] | None = None
+        self._expert_bodies: list[tuple[int, int]] | None = None
         if expert:
-            from openral_mjx.benchmarks.libero.export import expert_frames, goal_atoms
+            from openral_mjx.benchmarks.libero.export import (
+                expert_entry,
+                expert_frames,
+                goal_atoms,
+            )
+
+            self._expert_entry = expert_entry
 
             inner = self.env.env
             inner.reset()  # LIBERO parses the goal and places its objects at reset
@@ -91,10 +97,8 @@ class LiberoEnv:
             self._expert_bodies = [(body(o).id, body(t).id) for o, t in frames]
 
     def _expert(self) -> np.ndarray:
-        from openral_mjx.benchmarks.libero.export import expert_entry
-
         d = self.env.env.sim.data._data
-        return expert_entry(d.xpos, d.xquat, self._expert_bodies or [])
+        return self._expert_entry(d.xpos, d.xquat, self._expert_bodies or [])
 
     def _obs(self, raw: dict[str, Any]) -> dict[str, np.ndarray]:
         state = np.concatenate(

@@ -57,6 +57,7 @@ from openral_mjx.evaluation.suite import mps_running
 from openral_mjx.policies.mlp import MlpConfig, init_params, mlp_policy, save_mlp
 from openral_mjx.runner import run_seeds
 from openral_mjx.runner.compile_cache import enable_compilation_cache
+from openral_mjx.runner.device_layout import compiler_options
 from openral_mjx.runner.episode import seed_keys
 from openral_mjx.runner.memory import share_devices
 from openral_mjx.scenes import scene_suite
@@ -248,10 +249,10 @@ def mirror_inputs(scene, actions: jax.Array) -> tuple[jax.Array, jax.Array]:
 
 def raw_ceiling(
     scene, actions: np.ndarray, max_steps: int
-) -> tuple[float, float, Callable[[], Any]]:
-    """(compile s, control steps/s, a second run) of a bare `vmap(scan(mjx.step))` replaying
-    the mocap targets and gripper controls of `actions` (n, T, 4) from the same reset
-    states."""
+) -> tuple[float, float, float, Callable[[], Any]]:
+    """(compile s, control steps/s, the same compiled as the runner compiles (`compiler_options`),
+    a second run) of a bare `vmap(scan(mjx.step))` replaying the mocap targets and gripper
+    controls of `actions` (n, T, 4) from the same reset states."""
     from openral_mjx.physics.mjx_backend import mjx
     from openral_mjx.runner.episode import seed_keys
 
@@ -280,14 +281,19 @@ def raw_ceiling(
 
         return jax.lax.scan(control_step, d, (mocap_seq, ctrl_seq))[0].qpos
 
-    fn = jax.jit(jax.vmap(one))
+    lowered = jax.jit(jax.vmap(one)).lower(data, fields, mocap, ctrl)
     t = time.perf_counter()
-    compiled = fn.lower(data, fields, mocap, ctrl).compile()
+    compiled = lowered.compile()
     compile_s = time.perf_counter() - t
     again = lambda: jax.block_until_ready(compiled(data, fields, mocap, ctrl))  # noqa: E731
     t = time.perf_counter()
     again()
-    return compile_s, n * max_steps / (time.perf_counter() - t), again
+    rate = n * max_steps / (time.perf_counter() - t)
+    # the same program as the runner compiles its own (without XLA's GPU autotuner), side by side
+    untuned = lowered.compile(compiler_options=compiler_options(jax.devices()[0]))
+    t = time.perf_counter()
+    jax.block_until_ready(untuned(data, fields, mocap, ctrl))
+    return compile_s, rate, n * max_steps / (time.perf_counter() - t), again
 
 
 def raw(args: argparse.Namespace) -> None:
@@ -307,7 +313,9 @@ def raw(args: argparse.Namespace) -> None:
             )
             arrays, timing = evaluate()
             evaluator = n * args.max_steps / timing.run_s
-            raw_compile, ceiling, again = raw_ceiling(scene, arrays["actions"], args.max_steps)
+            raw_compile, ceiling, untuned, again = raw_ceiling(
+                scene, arrays["actions"], args.max_steps
+            )
             profile = {}
             if args.profile is not None:  # second runs, traced: kernel time by kind
                 where = args.profile / f"{task}_{n}"
@@ -330,6 +338,7 @@ def raw(args: argparse.Namespace) -> None:
                     "evaluator_steps_per_s": evaluator,
                     "raw_steps_per_s": ceiling,
                     "evaluator_over_raw": evaluator / ceiling,
+                    "raw_runner_options_steps_per_s": untuned,
                     "evaluator_compile_s": timing.compile_s,
                     "raw_compile_s": raw_compile,
                     **({"profile": profile} if profile else {}),

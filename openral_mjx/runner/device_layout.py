@@ -29,6 +29,20 @@ def _plain_lower(fn: Callable, args: tuple) -> Any:
     return fn.lower(*args)
 
 
+# XLA options for the runner's programs on GPUs. XLA's GPU autotuner times kernel variants on
+# scratch buffers as large as the program's own, while compiling: a batch too large for the
+# GPU then fails to compile ("Failed to get configs") instead of being measured and shrunk to
+# fit, and what it took stays in the process's allocator pool, out of reach of the other
+# processes sharing the GPU (a suite's task processes ran out of memory so, MT50 on `mjx`).
+# Without it XLA picks its kernels by its own heuristics. Measured: BENCHMARKS.md, issue 38.
+GPU_COMPILER_OPTIONS = {"xla_gpu_autotune_level": 0}
+
+
+def compiler_options(device: jax.Device) -> dict[str, Any]:
+    """The XLA options the runner compiles its programs with on `device`."""
+    return dict(GPU_COMPILER_OPTIONS) if device.platform == "gpu" else {}
+
+
 def _persistent_cache_on() -> bool:
     return bool(jax.config.jax_enable_compilation_cache and jax.config.jax_compilation_cache_dir)
 
@@ -129,14 +143,15 @@ class PerDevice:
         """One executable per local device, for arguments shaped like `args` (global arrays),
         compiled in parallel threads. On GPUs with JAX's persistent compilation cache on (the
         default here), whose keys ignore which GPU, the first compiles alone and the rest load
-        what it wrote."""
+        what it wrote. On GPUs without XLA's autotuner (`compiler_options`)."""
         devices = self.layout.local_devices
         lowered = [lower(self.fn, self.layout.local(args, d)) for d in devices]
+        options = compiler_options(devices[0])
         first: list[Any] = []
         if devices[0].platform == "gpu" and _persistent_cache_on():
-            first, lowered = [lowered[0].compile()], lowered[1:]
+            first, lowered = [lowered[0].compile(compiler_options=options)], lowered[1:]
         with ThreadPoolExecutor(max(1, len(lowered))) as pool:
-            rest = list(pool.map(lambda low: low.compile(), lowered))
+            rest = list(pool.map(lambda low: low.compile(compiler_options=options), lowered))
         return Program(self.layout, (*first, *rest), self.out_axes)
 
 

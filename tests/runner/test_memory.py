@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import jax
 import pytest
 
 from openral_mjx.evaluation import suite as suite_module
@@ -53,3 +54,40 @@ def test_a_cpu_device_says_nothing_and_the_batch_stays():
             return None
 
     assert memory.free_device_bytes(Cpu()) is None
+
+
+class _GpuDevice:
+    platform = "gpu"
+
+
+class _Lowered:
+    def __init__(self) -> None:
+        self.options: list[dict] = []
+
+    def compile(self, compiler_options=None):
+        self.options.append(compiler_options)
+        return object()
+
+
+@pytest.mark.parametrize("cache_on", [True, False])
+def test_gpu_programs_compile_without_xla_s_autotuner(cache_on, monkeypatch):
+    """On a GPU every executable the runner builds is compiled with autotuning off (its
+    scratch buffers are as large as the program's: a too-large batch would fail to compile
+    instead of shrinking); on a CPU with no options."""
+    from openral_mjx.runner import device_layout
+
+    assert device_layout.compiler_options(_GpuDevice()) == {"xla_gpu_autotune_level": 0}
+    assert device_layout.compiler_options(jax.devices("cpu")[0]) == {}
+    monkeypatch.setattr(device_layout, "_persistent_cache_on", lambda: cache_on)
+    layout = device_layout.Layout((_GpuDevice(), _GpuDevice()))
+    monkeypatch.setattr(device_layout.Layout, "local_devices", property(lambda s: s.devices))
+    monkeypatch.setattr(device_layout.Layout, "local", lambda s, args, d: args)
+    made: list[_Lowered] = []
+
+    def lower(fn, args):
+        made.append(_Lowered())
+        return made[-1]
+
+    program = device_layout.PerDevice(lambda x: x, layout).compile((1,), lower)
+    assert len(program.executables) == 2
+    assert [lo.options for lo in made] == [[{"xla_gpu_autotune_level": 0}]] * 2

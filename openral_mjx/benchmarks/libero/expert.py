@@ -1,13 +1,25 @@
-"""`libero-expert`: a scripted pick-and-place policy for LIBERO tasks, from privileged state.
+"""`libero-expert`: a scripted policy for LIBERO tasks, from privileged state.
 
-It plays the goal's pick-and-place atoms (``On``, ``In``; the first two) one after another:
-grasp the object, carry it over the target, lower it, let go and rise. It reads the
-observation's ``state`` (lerobot's 8 floats: end-effector position first) and ``expert``
-entry (per atom, the object's position, the target body's position and orientation; on both
-the `libero` host scene and the `libero_mjx` mirror),
-and acts as a pure JAX function of them, so the same seed plays the same actions on LIBERO and
-on the mirror for as long as their states agree: the closed-loop oracle of the mirror's
-agreement table.
+It plays the goal's atoms one after another, in `export.expert_atoms`' order (what opens or
+turns on first, then the pick-and-place atoms, then what closes or turns off):
+
+- **pick-and-place** (``On``, ``In``): grasp the object, carry it over the target, lower it,
+  let go and rise;
+- **push** (``TurnOn``/``TurnOff`` of a knob, ``Close`` of a hinged door): the closed gripper
+  goes beside the moving part's contact point, on the side away from where it must move,
+  and pushes it along its arc until the joint is past the goal's threshold.
+
+Not played (the atom is skipped; `coverage` says which tasks the expert plays in full):
+drawers (``Open``, ``Close`` of a slide: the palm, 21 cm across the fingers' closing axis,
+meets the cabinet; the hand would have to turn about the vertical first) and opening a
+hinged door (the microwave: it needs a grasp of the handle the downward hand cannot make).
+
+It reads the observation's ``state`` (lerobot's 8 floats: end-effector position first) and
+``expert`` entry (`export.expert_entry`: per atom the object's position and the target body's
+pose, or the moving body's pose and the joint's position; on both the `libero` host scene
+and the `libero_mjx` mirror), and acts as a pure JAX function of them, so the same seed plays
+the same actions on LIBERO and on the mirror for as long as their states agree: the
+closed-loop oracle of the mirror's agreement table.
 
 What it knows of a task beyond the observation is fixed per task and computed here from the
 task's model (the mirror's export, `assets.load_task`) at LIBERO's initial state 0:
@@ -18,15 +30,15 @@ task's model (the mirror's export, `assets.load_task`) at LIBERO's initial state
 - where the target is: the target body's origin (``On`` an object), or the region's site
   (``On`` a region, ``In`` a region) from the target body's pose, and the height to let go
   at: the object's bottom 2 cm above the target's top (its highest colliding geom, or the
-  region's top face).
+  region's top face);
+- for a joint atom, in the moving body's frame: the joint's axis and anchor, and the contact
+  point, the point of the moving part's tallest colliding geoms farthest from the axis.
 
-Phases (the policy state, with the atom being played): approach above the grasp point,
-descend, close the gripper, lift, carry over the target, lower, open, retreat; after the
-retreat, the next atom's approach. Position targets become OSC deltas
-(``(target - eef) / 0.05``, clipped to [-1, 1]: robosuite scales a unit action to 5 cm); the
-orientation is held (zero rotation). Atoms that are not pick-and-place (opening, closing,
-turning on or off) are not played: a goal with one succeeds only where it already holds.
-`coverage` says which a task is.
+Phases (the policy state, with the atom being played): approach above the start point,
+descend, close the gripper, lift (a joint atom: drive along the path), carry over the
+target, lower, open, retreat; after the retreat, the next atom's approach. Position targets
+become OSC deltas (``(target - eef) / 0.05``, clipped to [-1, 1]: robosuite scales a unit
+action to 5 cm); the orientation is held (zero rotation).
 """
 
 from __future__ import annotations
@@ -41,7 +53,8 @@ import mujoco
 import numpy as np
 
 from openral_mjx.benchmarks.libero.assets import load_task, physics_spec
-from openral_mjx.benchmarks.libero.export import ATOM_SIZE, EXPERT_SIZE, pick_atoms
+from openral_mjx.benchmarks.libero.export import ATOM_SIZE, EXPERT_SIZE, closes, expert_atoms
+from openral_mjx.core import fixed_order as fo
 from openral_mjx.core.errors import ConfigError
 from openral_mjx.core.rotations import quat_to_mat
 from openral_mjx.physics.contact_sensors import in_subtree
@@ -57,26 +70,41 @@ APPROACH, DESCEND, CLOSE, LIFT, CARRY_OVER, LOWER, OPEN, RETREAT = range(8)
 GRIPPER_STEPS = 15  # control steps the gripper gets to close or open
 PHASE_LIMIT = 80  # control steps after which a moving phase gives up waiting and goes on
 RETREATED = 0.01  # how near the retreat point the hand is before the next atom's approach
+PICK, PUSH, SKIP = range(3)  # how an atom is played
+STANDOFF = 0.055  # a push's start: the hand's centre this far behind the contact point
+INSET = 0.01  # a push's contact point: this far in from the part's far end, towards the axis
+FINGER = 0.01  # a push's drive: the hand's centre this far behind the point it pushes to
+AHEAD = 0.05  # how far along its path a joint atom's drive aims ahead of the contact point
+STROKE = 25  # control steps a push's drive gets; if the joint is not past by then, the hand
+# goes up and comes down behind the part again (a long push wedges the fingers on a knob)
+WIDE_HINGE = 0.1  # a hinge whose contact point lies farther from its axis is a door
 
 
 @dataclasses.dataclass(frozen=True)
 class Plan:
     """The per-task constants the expert plays with (see the module docstring), one row per
-    pick-and-place atom it plays, in the goal's order."""
+    atom of `export.expert_atoms`, in its order."""
 
-    grasp: np.ndarray  # grasp point relative to the object's origin, world axes (atoms, 3)
-    site_pos: np.ndarray  # the target point in the target body's frame (atoms, 3)
-    release_z: np.ndarray  # object-origin height over the target point when let go (atoms,)
+    kind: np.ndarray  # PICK, PUSH or SKIP (atoms,)
+    # PICK: the grasp point relative to the object's origin, world axes; a joint atom: the
+    # contact point in the moving body's frame (atoms, 3)
+    point: np.ndarray
+    site_pos: np.ndarray  # PICK: the target point in the target body's frame (atoms, 3)
+    release_z: np.ndarray  # PICK: object-origin height over the target point when let go
+    axis: np.ndarray  # a joint atom: the hinge's axis in the moving body's frame (atoms, 3)
+    anchor: np.ndarray  # a joint atom: the hinge's anchor in the moving body's frame
+    sign: np.ndarray  # a joint atom: +1 where the goal wants the joint above its threshold
+    threshold: np.ndarray  # a joint atom: the goal's threshold on the joint's position
     coverage: str
 
     @property
     def atoms(self) -> int:
-        return len(self.release_z)
+        return len(self.kind)
 
 
-def _colliding_box(m: mujoco.MjModel, d: mujoco.MjData, body: int) -> tuple[np.ndarray, ...]:
-    """World-axis bounds (low, high) of the colliding geoms in `body`'s subtree."""
-    lows, highs = [], []
+def _geom_boxes(m: mujoco.MjModel, d: mujoco.MjData, body: int) -> list[tuple[np.ndarray, ...]]:
+    """World-axis bounds (low, high) of each colliding geom in `body`'s subtree."""
+    boxes = []
     for g in range(m.ngeom):
         if not (m.geom_contype[g] or m.geom_conaffinity[g]):
             continue
@@ -85,11 +113,16 @@ def _colliding_box(m: mujoco.MjModel, d: mujoco.MjData, body: int) -> tuple[np.n
         center, half = m.geom_aabb[g, :3], m.geom_aabb[g, 3:]
         corners = center + half * np.array(np.meshgrid(*[[-1, 1]] * 3)).reshape(3, -1).T
         world = d.geom_xpos[g] + corners @ d.geom_xmat[g].reshape(3, 3).T
-        lows.append(world.min(axis=0))
-        highs.append(world.max(axis=0))
-    if not lows:
-        raise ConfigError(f"body {m.body(body).name!r} has no colliding geom to grasp")
-    return np.min(lows, axis=0), np.max(highs, axis=0)
+        boxes.append((world.min(axis=0), world.max(axis=0)))
+    if not boxes:
+        raise ConfigError(f"body {m.body(body).name!r} has no colliding geom to grasp or push")
+    return boxes
+
+
+def _colliding_box(m: mujoco.MjModel, d: mujoco.MjData, body: int) -> tuple[np.ndarray, ...]:
+    """World-axis bounds (low, high) of the colliding geoms in `body`'s subtree."""
+    boxes = _geom_boxes(m, d, body)
+    return np.min([b[0] for b in boxes], axis=0), np.max([b[1] for b in boxes], axis=0)
 
 
 def closing_axis(m: mujoco.MjModel, d: mujoco.MjData, finger_joint: str) -> np.ndarray:
@@ -104,30 +137,42 @@ def closing_axis(m: mujoco.MjModel, d: mujoco.MjData, finger_joint: str) -> np.n
 
 @functools.cache
 def plan_for(task: str) -> Plan | None:
-    """Task ``suite/index``'s plan, or None where its goal has no pick-and-place atom."""
+    """Task ``suite/index``'s plan, or None where the expert plays none of its atoms."""
     export = load_task(task)
-    picks = pick_atoms(export.goal)
-    if not picks:
-        return None
+    atoms = expert_atoms(export.goal)
     m = physics_spec(export).compile()
     d = mujoco.MjData(m)
     state = np.asarray(export.init_states[0], np.float64)
     d.qpos[:] = state[1 : 1 + m.nq]
     mujoco.mj_forward(m, d)
     axis = closing_axis(m, d, export.meta["gripper_joints"][0])
-    rows = [_atom_plan(m, d, atom, axis) for atom in picks]
-    others = [a for a in export.goal if a["kind"] != "true" and a not in picks]
+    rows = [
+        _joint_plan(m, d, atom) if atom["kind"] == "joints" else _atom_plan(m, d, atom, axis)
+        for atom in atoms
+    ]
+    played = [r for r in rows if r["kind"] != SKIP]
+    if not played:
+        return None
+    goal = [a for a in export.goal if a["kind"] != "true"]
+    full = len(played) == len(goal)
+    stack = lambda k, dtype=np.float32: np.array([r.get(k, 0.0) for r in rows], dtype)  # noqa: E731
+    vec = lambda k: np.stack([np.asarray(r.get(k, np.zeros(3)), np.float32) for r in rows])  # noqa: E731
     return Plan(
-        grasp=np.stack([r[0] for r in rows]).astype(np.float32),
-        site_pos=np.stack([r[1] for r in rows]).astype(np.float32),
-        release_z=np.array([r[2] for r in rows], np.float32),
-        coverage="pick-and-place atoms of several" if others else "covered",
+        kind=stack("kind", np.int32),
+        point=vec("point"),
+        site_pos=vec("site_pos"),
+        release_z=stack("release_z"),
+        axis=vec("axis"),
+        anchor=vec("anchor"),
+        sign=stack("sign"),
+        threshold=stack("threshold"),
+        coverage="covered" if full else "partly",
     )
 
 
 def _atom_plan(
     m: mujoco.MjModel, d: mujoco.MjData, atom: dict[str, Any], axis: np.ndarray
-) -> tuple[np.ndarray, np.ndarray, float]:
+) -> dict[str, Any]:
     """One pick-and-place atom's grasp point, target point and release height."""
     obj = m.body(atom["obj"]).id
     target = m.body(atom.get("target") or atom["site_body"]).id
@@ -149,7 +194,53 @@ def _atom_plan(
         top = float(np.abs(rot @ np.asarray(atom["size"]))[2])
         if atom["kind"] == "on_site":
             top = float(atom["size"][2])
-    return grasp, site_pos, float(top + CLEARANCE + bottom)
+    return {
+        "kind": PICK,
+        "point": grasp,
+        "site_pos": site_pos,
+        "release_z": float(top + CLEARANCE + bottom),
+    }
+
+
+def _joint_plan(m: mujoco.MjModel, d: mujoco.MjData, atom: dict[str, Any]) -> dict[str, Any]:
+    """One joint atom's contact point, axis and anchor (in the moving body's frame), or SKIP
+    where the expert does not play it (see the module docstring)."""
+    j = m.joint(atom["joints"][0])
+    if int(j.type[0]) != mujoco.mjtJoint.mjJNT_HINGE:
+        # A drawer. With the hand pointing down and its fingers closing along the drawer's
+        # axis, the palm spans 21 cm along it: pushed shut (`libero_90/0`), the drawer went
+        # 12 of its 15 cm before the palm met the cabinet; to open one (`libero_goal/0`) the
+        # palm stopped on the cabinet above the handle.
+        return {"kind": SKIP}
+    body = int(j.bodyid[0])
+    rot, origin = d.xmat[body].reshape(3, 3), d.xpos[body]
+    axis_w, anchor_w = rot @ m.jnt_axis[j.id], d.xanchor[j.id]
+    boxes = _geom_boxes(m, d, body)
+    top = max(high[2] for _, high in boxes)
+    faces = [  # the face centres of the tallest parts' boxes
+        ((low + high) / 2 + np.eye(3)[k] * side * (high - low)[k] / 2, (low, high))
+        for low, high in boxes
+        if high[2] >= top - 0.02
+        for k in range(3)
+        for side in (-1, 1)
+    ]
+    radial = lambda p: float(np.linalg.norm(np.cross(axis_w, p - anchor_w)))  # noqa: E731
+    point, (low, high) = max(faces, key=lambda f: radial(f[0]))
+    if not closes(atom) and radial(point) > WIDE_HINGE:  # a door to open
+        return {"kind": SKIP}
+    # a little in from the far end (pushed at its tip, the part turns out from under the
+    # fingers and wedges them), high enough to clear what it stands on, low enough to push
+    lever = np.cross(axis_w, np.cross(point - anchor_w, axis_w))
+    point = point - INSET * lever / np.linalg.norm(lever)
+    point[2] = min(high[2] - 0.015, max((low[2] + high[2]) / 2, low[2] + 0.03))
+    return {
+        "kind": PUSH,
+        "point": rot.T @ (point - origin),
+        "axis": np.asarray(m.jnt_axis[j.id], np.float64),
+        "anchor": rot.T @ (anchor_w - origin),
+        "sign": 1.0 if atom["above"][0] else -1.0,
+        "threshold": float(atom["threshold"][0]),
+    }
 
 
 def _mat(quat: Any) -> np.ndarray:
@@ -159,9 +250,8 @@ def _mat(quat: Any) -> np.ndarray:
 
 
 def coverage(task: str) -> str:
-    """Whether the expert plays `task`'s goal: ``covered`` (every atom, each a
-    pick-and-place), ``pick-and-place atoms of several`` (it plays those; the others, such as
-    opening or turning on, it does not), or ``not covered`` (no pick-and-place atom)."""
+    """Whether the expert plays `task`'s goal: ``covered`` (every atom), ``partly`` (some:
+    a third atom, or a door to open), or ``not covered`` (none)."""
     plan = plan_for(task)
     return "not covered" if plan is None else plan.coverage
 
@@ -171,54 +261,115 @@ def _toward(target: jax.Array, eef: jax.Array, gripper: float | jax.Array) -> ja
     return jnp.concatenate([delta, jnp.zeros(3), jnp.reshape(jnp.float32(gripper), (1,))])
 
 
-def act(plan: Plan, state: jax.Array, expert: jax.Array, pstate: dict) -> tuple[jax.Array, dict]:
-    """One control step of the expert: the action and the next phase state. It plays the
-    plan's atoms one after another: after the retreat from one, the next one's approach."""
-    eef = state[:3]
-    phase, count, atom = pstate["phase"], pstate["count"], pstate["atom"]
-    row = jax.lax.dynamic_slice(expert, (atom * ATOM_SIZE,), (ATOM_SIZE,))
+def _pick_targets(plan: Plan, row: jax.Array, atom: jax.Array, eef: jax.Array, hold: jax.Array):
+    """A pick-and-place atom's target per phase (8, 3)."""
     obj, target_pos, target_quat = row[:3], row[3:6], row[6:10]
-    grasp = obj + jnp.asarray(plan.grasp)[atom]
+    grasp = obj + jnp.asarray(plan.point)[atom]
     goal = target_pos + quat_to_mat(target_quat) @ jnp.asarray(plan.site_pos)[atom]
     held = obj - eef  # the object's origin relative to the hand, once held
     release_z = jnp.asarray(plan.release_z)[atom]
     release = jnp.concatenate([goal[:2] - held[:2], goal[2:] + release_z - held[2:]])
     carry = release[2] + CARRY
-    targets = jnp.stack(
+    return jnp.stack(
         [
             grasp + jnp.array([0.0, 0.0, ABOVE]),  # APPROACH
             grasp,  # DESCEND
-            pstate["hold"],  # CLOSE
+            hold,  # CLOSE
             # LIFT: at least 5 cm up from where the object was grasped
-            jnp.concatenate(
-                [pstate["hold"][:2], jnp.maximum(carry, pstate["hold"][2] + 0.05)[None]]
-            ),
+            jnp.concatenate([hold[:2], jnp.maximum(carry, hold[2] + 0.05)[None]]),
             jnp.concatenate([release[:2], carry[None]]),  # CARRY_OVER
             release,  # LOWER
-            pstate["hold"],  # OPEN
-            pstate["hold"] + jnp.array([0.0, 0.0, ABOVE]),  # RETREAT
+            hold,  # OPEN
+            hold + jnp.array([0.0, 0.0, ABOVE]),  # RETREAT
         ]
     )
-    grip = jnp.array([-1.0, -1.0, 1.0, 1.0, 1.0, 1.0, -1.0, -1.0])
-    target = targets[phase]
-    action = _toward(target, eef, grip[phase])
+
+
+def _rotate(v: jax.Array, axis: jax.Array, angle: jax.Array) -> jax.Array:
+    """`v` turned by `angle` about the unit `axis` (Rodrigues)."""
+    c, s = jnp.cos(angle), jnp.sin(angle)
+    return v * c + fo.cross(axis, v) * s + axis * fo.dot(axis, v) * (1.0 - c)
+
+
+def _joint_targets(plan: Plan, row: jax.Array, atom: jax.Array, hold: jax.Array):
+    """A joint atom's target per phase (8, 3), and whether the joint is past the goal's
+    threshold. The contact point turns about the hinge: the drive aims `AHEAD` along its
+    arc."""
+    pos, q, rot = row[:3], row[3], quat_to_mat(row[6:10])
+    point = pos + fo.mv(rot, jnp.asarray(plan.point)[atom])
+    axis = fo.mv(rot, jnp.asarray(plan.axis)[atom])
+    lever = point - (pos + fo.mv(rot, jnp.asarray(plan.anchor)[atom]))
+    sign = jnp.asarray(plan.sign)[atom]
+    tangent = fo.cross(axis, lever)
+    way = sign * tangent / jnp.maximum(fo.norm(tangent), 1e-6)  # where the point must move
+    radius = jnp.maximum(fo.norm(lever), 0.02)
+    ahead = point - lever + _rotate(lever, axis, sign * AHEAD / radius)  # along its arc
+    start, drive = point - way * STANDOFF, ahead - way * FINGER
+    up = jnp.array([0.0, 0.0, ABOVE])
+    targets = jnp.stack([start + up, start, hold, drive, hold, hold, hold, hold - way * AHEAD + up])
+    return targets, sign * (q - jnp.asarray(plan.threshold)[atom]) > 0
+
+
+# per way of playing an atom (PICK, PUSH, SKIP) and phase: the gripper's command, the
+# distance at which a moving phase counts as reached, and the steps a phase gets at most
+# (a phase a way skips gets one)
+GRIP = np.array(
+    [
+        [-1.0, -1.0, 1.0, 1.0, 1.0, 1.0, -1.0, -1.0],
+        [1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0],
+        [-1.0] * 8,
+    ],
+    np.float32,
+)
+REACHED = np.array(
+    [
+        [0.01, 0.006, 0.0, 0.015, 0.01, 0.008, 0.0, 0.0],
+        [0.01, 0.008, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+        [0.0] * 8,
+    ],
+    np.float32,
+)
+TIMED = np.array(
+    [
+        [PHASE_LIMIT, 40, GRIPPER_STEPS, PHASE_LIMIT, PHASE_LIMIT, 40, 10, 10**6],
+        [PHASE_LIMIT, 40, 1, STROKE, 1, 1, 1, 10**6],
+        [1, 1, 1, 1, 1, 1, 1, 1],
+    ],
+    np.int32,
+)
+
+
+def act(plan: Plan, state: jax.Array, expert: jax.Array, pstate: dict) -> tuple[jax.Array, dict]:
+    """One control step of the expert: the action and the next phase state. It plays the
+    plan's atoms one after another: after the retreat from one, the next one's approach."""
+    eef = state[:3]
+    phase, count, atom, hold = pstate["phase"], pstate["count"], pstate["atom"], pstate["hold"]
+    row = jax.lax.dynamic_slice(expert, (atom * ATOM_SIZE,), (ATOM_SIZE,))
+    kind = jnp.asarray(plan.kind)[atom]
+    joint_targets, past = _joint_targets(plan, row, atom, hold)
+    targets = jnp.where(kind == PICK, _pick_targets(plan, row, atom, eef, hold), joint_targets)
+    target = jnp.where(kind == SKIP, eef, targets[phase])
+    action = _toward(target, eef, jnp.asarray(GRIP)[kind, phase])
     error = jnp.linalg.norm(target - eef)
-    reached = jnp.array([0.01, 0.006, 0.0, 0.015, 0.01, 0.008, 0.0, 0.0])[phase]
-    timed = jnp.array([PHASE_LIMIT, 40, GRIPPER_STEPS, PHASE_LIMIT, PHASE_LIMIT, 40, 10, 10**6])
-    advance = ((error < reached) | (count + 1 >= timed[phase])) & (phase < RETREAT)
+    reached = jnp.where(
+        (kind != PICK) & (phase == LIFT), past, error < jnp.asarray(REACHED)[kind, phase]
+    )
+    advance = (reached | (count + 1 >= jnp.asarray(TIMED)[kind, phase])) & (phase < RETREAT)
     # the next atom, once the hand is back up from this one (the last one's retreat holds)
     next_atom = (
         (phase == RETREAT)
         & (atom + 1 < plan.atoms)
-        & ((error < RETREATED) | (count + 1 >= PHASE_LIMIT))
+        & ((error < RETREATED) | (count + 1 >= PHASE_LIMIT) | (kind == SKIP))
     )
+    # a push's stroke that ends short of the threshold: up, and behind the part again
+    again = (kind == PUSH) & (phase == LIFT) & ~past & (count + 1 >= STROKE)
     moved = advance | next_atom
     return action, {
-        "phase": jnp.where(next_atom, APPROACH, phase + advance.astype(jnp.int32)),
+        "phase": jnp.where(next_atom | again, APPROACH, phase + advance.astype(jnp.int32)),
         "count": jnp.where(moved, 0, count + 1),
         "atom": atom + next_atom.astype(jnp.int32),
         # where the hand holds still while the gripper moves: where it was when that began
-        "hold": jnp.where(moved, eef, pstate["hold"]),
+        "hold": jnp.where(moved, eef, hold),
     }
 
 
@@ -237,8 +388,8 @@ def libero_expert(scene: Any, arg: str | None) -> Policy:
     plan = plan_for(scene.task)
     if plan is None:
         raise ConfigError(
-            f"policy 'libero-expert' picks and places: task {scene.task!r}'s goal has no On or "
-            "In atom (opening, closing and turning are not scripted)"
+            f"policy 'libero-expert' plays no atom of task {scene.task!r}'s goal (drawers and "
+            "opening a hinged door are not scripted)"
         )
     if name == "libero_mjx" and scene.obs_layout:  # a flat vector (no cameras)
         (s0, sn), (e0, en) = scene.obs_layout["state"], scene.obs_layout["expert"]

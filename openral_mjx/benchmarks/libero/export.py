@@ -31,10 +31,12 @@ import numpy as np
 
 from openral_mjx.benchmarks.libero.worker_env import DUMMY_ACTION, SETTLE_STEPS, LiberoEnv
 
-# the ``expert`` observation entry: per pick-and-place atom of the goal (the first
-# `EXPERT_ATOMS`), the moved object's position, its target body's position and quaternion
-# (`expert_frames`); zeros where the goal has fewer
-EXPERT_ATOMS = 2
+# the ``expert`` observation entry: per atom of the goal the expert plays (`expert_atoms`, at
+# most `EXPERT_ATOMS`) one row of `ATOM_SIZE` floats: for a pick-and-place atom the moved
+# object's position, its target body's position and quaternion; for a joint atom (open, close,
+# turn on or off) the moving body's position, the joint's position and two zeros, the moving
+# body's quaternion; zeros where the goal has fewer
+EXPERT_ATOMS = 3
 ATOM_SIZE = 10
 EXPERT_SIZE = EXPERT_ATOMS * ATOM_SIZE
 PICK_KINDS = ("on_object", "on_site", "in_site")
@@ -322,27 +324,50 @@ def goal_atoms(env: Any) -> list[dict[str, Any]]:
     return [_atom(env, atom[0].lower(), atom[1:]) for atom in goal]
 
 
-def pick_atoms(atoms: list[dict[str, Any]]) -> list[dict[str, Any]]:
-    """The goal's pick-and-place atoms `libero-expert` plays, in its order (at most
-    `EXPERT_ATOMS`)."""
-    return [atom for atom in atoms if atom["kind"] in PICK_KINDS][:EXPERT_ATOMS]
+def closes(atom: dict[str, Any]) -> bool:
+    """Whether a joint atom drives its joint back to rest (close, turn off: the threshold at
+    the joint's zero) rather than away from it (open, turn on)."""
+    return abs(float(atom["threshold"][0])) <= 0.01
 
 
-def expert_frames(atoms: list[dict[str, Any]]) -> list[tuple[str, str]] | None:
-    """The bodies `libero-expert` watches, per atom of `pick_atoms`: the object the atom
-    moves and the body its target is (or is fixed to); None where the goal has no such
-    atom."""
-    frames = [(a["obj"], a.get("target") or a["site_body"]) for a in pick_atoms(atoms)]
-    return frames or None
+def expert_atoms(atoms: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """The goal's atoms `libero-expert` plays, in the order it plays them (at most
+    `EXPERT_ATOMS`): joint atoms that open or turn on first, then the pick-and-place atoms,
+    then the joint atoms that close or turn off (a drawer is opened before a bowl goes in and
+    shut after)."""
+    joints = [a for a in atoms if a["kind"] == "joints"]
+    picks = [a for a in atoms if a["kind"] in PICK_KINDS]
+    ordered = [a for a in joints if not closes(a)] + picks + [a for a in joints if closes(a)]
+    return ordered[:EXPERT_ATOMS]
 
 
-def expert_entry(positions: Any, quats: Any, ids: list[tuple[int, int]], xp: Any = np) -> Any:
-    """The ``expert`` entry from body `positions` (n, 3) and `quats` (n, 4) (numpy, or
-    jax.numpy as `xp`): per watched atom (object, target) body indices, the object's position
-    and the target's position and quaternion, zeros for the atoms the goal lacks."""
-    parts = [
-        xp.concatenate([positions[obj], positions[target], quats[target]]) for obj, target in ids
-    ]
+def expert_ids(atoms: list[dict[str, Any]], model: Any, index: Any) -> list[tuple[int, int, int]]:
+    """Per atom of `expert_atoms`, what its ``expert`` row reads (`expert_entry`): (moved
+    body, target body, -1) for a pick-and-place atom, (moving body, moving body, the joint's
+    qpos address) for a joint atom; bodies as `index(name)` places them in the caller's
+    arrays, `model` a `mujoco.MjModel` of the task."""
+    ids = []
+    for a in expert_atoms(atoms):
+        if a["kind"] == "joints":
+            joint = model.joint(a["joints"][0])
+            body = index(model.body(int(joint.bodyid[0])).name)
+            ids.append((body, body, int(joint.qposadr[0])))
+        else:
+            ids.append((index(a["obj"]), index(a.get("target") or a["site_body"]), -1))
+    return ids
+
+
+def expert_entry(
+    positions: Any, quats: Any, qpos: Any, ids: list[tuple[int, int, int]], xp: Any = np
+) -> Any:
+    """The ``expert`` entry from body `positions` (n, 3), `quats` (n, 4) and `qpos` (numpy, or
+    jax.numpy as `xp`), per `expert_ids` row; zeros for the atoms the goal lacks."""
+    parts = []
+    for obj, target, adr in ids:
+        middle = (
+            positions[target] if adr < 0 else xp.concatenate([qpos[adr : adr + 1], xp.zeros(2)])
+        )
+        parts.append(xp.concatenate([positions[obj], middle, quats[target]]))
     parts += [xp.zeros(ATOM_SIZE, xp.float32)] * (EXPERT_ATOMS - len(ids))
     return xp.concatenate([xp.asarray(p, xp.float32) for p in parts])
 

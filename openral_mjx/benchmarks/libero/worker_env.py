@@ -8,9 +8,9 @@ Observation (lerobot's LIBERO convention): ``image`` (agent view) and ``wrist_im
 end-effector position (3), axis-angle (3) and gripper finger positions (2), float32. Action:
 7-D OSC pose delta and gripper command in [-1, 1]. Success: LIBERO's own goal predicates
 (`check_success`); the episode ends there. With ``expert`` on, the observation also has
-``expert``: per pick-and-place atom of the goal (the first two), the world position of the
-object the atom moves, and the position and orientation (w, x, y, z) of its target's body
-(`export.expert_frames`), as the last physics step leaves them in MuJoCo's data (10 floats
+``expert``: per atom of the goal the expert plays (`export.expert_atoms`), the object it
+moves and its target's pose, or the moving body's pose and the joint's position
+(`export.expert_entry`), as the last physics step leaves them in MuJoCo's data (10 floats
 per atom; zeros for atoms the goal lacks): what `libero-expert` reads.
 
 LIBERO asks interactively where to keep its files on first import unless its config exists;
@@ -80,25 +80,20 @@ class LiberoEnv:
         self.env = OffScreenRenderEnv(
             bddl_file_name=str(bddl), camera_heights=image_size, camera_widths=image_size
         )
-        self._expert_bodies: list[tuple[int, int]] | None = None
+        self._expert_ids: list[tuple[int, int, int]] | None = None
         if expert:
-            from openral_mjx.benchmarks.libero.export import (
-                expert_entry,
-                expert_frames,
-                goal_atoms,
-            )
+            from openral_mjx.benchmarks.libero.export import expert_entry, expert_ids, goal_atoms
 
             self._expert_entry = expert_entry
 
             inner = self.env.env
             inner.reset()  # LIBERO parses the goal and places its objects at reset
-            body = inner.sim.model._model.body
-            frames = expert_frames(goal_atoms(inner)) or []
-            self._expert_bodies = [(body(o).id, body(t).id) for o, t in frames]
+            model = inner.sim.model._model
+            self._expert_ids = expert_ids(goal_atoms(inner), model, lambda n: model.body(n).id)
 
     def _expert(self) -> np.ndarray:
         d = self.env.env.sim.data._data
-        return self._expert_entry(d.xpos, d.xquat, self._expert_bodies or [])
+        return self._expert_entry(d.xpos, d.xquat, d.qpos, self._expert_ids or [])
 
     def _obs(self, raw: dict[str, Any]) -> dict[str, np.ndarray]:
         state = np.concatenate(
@@ -113,7 +108,7 @@ class LiberoEnv:
             "wrist_image": np.ascontiguousarray(raw["robot0_eye_in_hand_image"][::-1, ::-1]),
             "state": state,
         }
-        if self._expert_bodies is not None:
+        if self._expert_ids is not None:
             obs["expert"] = self._expert()
         return obs
 

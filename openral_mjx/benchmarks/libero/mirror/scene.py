@@ -21,10 +21,11 @@ reproduces of LIBERO's `OffScreenRenderEnv` (robosuite 1.4):
   float timer that comes round at the 24th of the 25 physics steps (the export measures
   which), reading the data that step leaves: the end-effector pose computed before its
   integration, the fingers' positions after it.
-- **Expert entry** (option ``expert``, on by default): per pick-and-place atom of the goal
-  (the first two), the moved object's position and its target body's pose
-  (`export.expert_frames`), from the data the control step's last physics step leaves, as the
-  host scene's workers read them; what `libero-expert` plays from.
+- **Expert entry** (option ``expert``, on by default): per atom of the goal the expert plays
+  (`export.expert_atoms`), the moved object's position and its target body's pose, or the
+  moving body's pose and the joint's position (`export.expert_entry`), from the data the
+  control step's last physics step leaves, as the host scene's workers read them; what
+  `libero-expert` plays from.
 - **Cameras** (option ``image_size``, backend `c` or `warp`): ``image`` (agentview) and
   ``wrist_image`` (robot0_eye_in_hand) as the host scene gives them, drawn from the model with
   LIBERO's visual geoms, textures and lights by MuJoCo's renderer (`c`) or MuJoCo-Warp's batch
@@ -48,7 +49,7 @@ import mujoco
 import numpy as np
 
 from openral_mjx.benchmarks.libero.assets import TaskModel, load_sampled, load_task, physics_spec
-from openral_mjx.benchmarks.libero.export import EXPERT_SIZE, expert_entry, expert_frames
+from openral_mjx.benchmarks.libero.export import EXPERT_SIZE, expert_entry, expert_ids
 from openral_mjx.benchmarks.libero.host_scene import instruction as host_instruction
 from openral_mjx.benchmarks.libero.mirror.controller import (
     ControllerState,
@@ -173,6 +174,18 @@ def camera_images(q: Quantities) -> dict[str, jax.Array]:
     }
 
 
+def joint_bodies(goal: Goal, model: mujoco.MjModel) -> tuple[str, ...]:
+    """The bodies the goal's joint atoms move (the expert watches their poses), beyond the
+    bodies the goal reads already."""
+    names: list[str] = []
+    for atom in goal.atoms:
+        for joint in atom.get("joints", ()):
+            name = model.body(int(model.joint(joint).bodyid[0])).name
+            if name not in names and name not in goal.bodies:
+                names.append(name)
+    return tuple(names)
+
+
 class LiberoMjx(Scene):
     """One LIBERO task on a MuJoCo backend (see the module docstring)."""
 
@@ -211,6 +224,7 @@ class LiberoMjx(Scene):
         # first shipped initial state. The MJCF's own qpos0 piles the objects at the origin.
         self.spec.add_key(name="reference", qpos=t.init_states[0][1 : 1 + compiled.nq])
         self.goal = Goal.build(t.goal, compiled)
+        self._joint_bodies = joint_bodies(self.goal, compiled)
         self.backend = self._make_backend(backend, settings)
         m = self.mj_model
         self.n_substeps = int(meta["n_substeps"])
@@ -230,9 +244,7 @@ class LiberoMjx(Scene):
         self._index_robot(m)
         self.gains = gains(t, m.actuator_ctrlrange, self._grip_act)
         self._load_states(m)
-        bodies = self.backend.quantity_spec.bodies
-        frames = expert_frames(t.goal) or []
-        self._expert = [(bodies.index(o), bodies.index(b)) for o, b in frames]
+        self._expert = expert_ids(t.goal, m, self.backend.quantity_spec.bodies.index)
         sizes = {"state": STATE_SIZE, **({"expert": EXPERT_SIZE} if o.expert else {})}
         self._layout = {} if cameras else obs_slices(sizes)
         self._obs_sizes = sizes
@@ -245,7 +257,7 @@ class LiberoMjx(Scene):
             backend,
             self.spec,
             QuantitySpec(
-                bodies=(meta["eef_body"], *self.goal.bodies),
+                bodies=(meta["eef_body"], *self.goal.bodies, *self._joint_bodies),
                 sites=(meta["eef_site"],),
                 contacts=self.goal.contacts,
                 sensors=tuple(
@@ -477,9 +489,8 @@ class LiberoMjx(Scene):
         return {**images, **{k: jnp.zeros(n, jnp.float32) for k, n in self._obs_sizes.items()}}
 
     def _expert_entry(self, q: Quantities) -> jax.Array:
-        """Per watched atom, the moved object's position, its target body's position and
-        orientation (`export.expert_entry`)."""
-        return expert_entry(q.body_pos, q.body_quat, self._expert, jnp)
+        """Per atom the expert plays, what it reads (`export.expert_entry`)."""
+        return expert_entry(q.body_pos, q.body_quat, q.qpos, self._expert, jnp)
 
     def _obs(self, physics: PhysicsState) -> jax.Array:
         q = physics.quantities

@@ -5,14 +5,19 @@ turns on first, then the pick-and-place atoms, then what closes or turns off):
 
 - **pick-and-place** (``On``, ``In``): grasp the object, carry it over the target, lower it,
   let go and rise;
-- **push** (``TurnOn``/``TurnOff`` of a knob, ``Close`` of a hinged door): the closed gripper
-  goes beside the moving part's contact point, on the side away from where it must move,
-  and pushes it along its arc until the joint is past the goal's threshold.
+- **push** (``TurnOn``/``TurnOff`` of a knob, ``Close`` of a hinged door or of a cabinet's
+  top drawer): the closed gripper goes beside the moving part's contact point, on the side
+  away from where it must move, and pushes it along its path (an arc about a hinge, a line
+  along a slide; for a drawer the hand first turns a quarter about the vertical, so that its
+  palm lies along the cabinet's front) in strokes of `STROKE` steps, going up and down
+  behind the part again after each, until the joint is past the goal's threshold.
 
 Not played (the atom is skipped; `coverage` says which tasks the expert plays in full):
-drawers (``Open``, ``Close`` of a slide: the palm, 21 cm across the fingers' closing axis,
-meets the cabinet; the hand would have to turn about the vertical first) and opening a
-hinged door (the microwave: it needs a grasp of the handle the downward hand cannot make).
+opening a drawer (hooking or grasping its handle: from above the palm, 21 cm across the
+fingers' closing axis, stops on the cabinet; turned, the closed fingers do not fit the 2 cm
+between handle and front), shutting any drawer but a cabinet's top one (the palm meets the
+cabinet above it), and opening a hinged door (the microwave: its handle needs a grasp the
+downward hand cannot make).
 
 It reads the observation's ``state`` (lerobot's 8 floats: end-effector position first) and
 ``expert`` entry (`export.expert_entry`: per atom the object's position and the target body's
@@ -36,7 +41,9 @@ task's model (the mirror's export, `assets.load_task`) at LIBERO's initial state
 
 Phases (the policy state, with the atom being played): approach above the start point,
 descend, close the gripper, lift (a joint atom: drive along the path), carry over the
-target, lower, open, retreat; after the retreat, the next atom's approach. Position targets
+target, lower, open, retreat; after the retreat, the next atom's approach. A grasp whose
+fingers close on nothing (under `EMPTY` apart while lifting, carrying or lowering) starts the
+atom over from its approach. Position targets
 become OSC deltas (``(target - eef) / 0.05``, clipped to [-1, 1]: robosuite scales a unit
 action to 5 cm); the orientation is held (zero rotation).
 """
@@ -68,6 +75,7 @@ CLEARANCE = 0.02  # the object's bottom over the target's top when let go
 CARRY = 0.12  # carrying height over the release height
 APPROACH, DESCEND, CLOSE, LIFT, CARRY_OVER, LOWER, OPEN, RETREAT = range(8)
 GRIPPER_STEPS = 15  # control steps the gripper gets to close or open
+EMPTY = 0.003  # the fingers' gap (m) under which a closed grasp holds nothing (a bowl's rim: 6 mm)
 PHASE_LIMIT = 80  # control steps after which a moving phase gives up waiting and goes on
 RETREATED = 0.01  # how near the retreat point the hand is before the next atom's approach
 PICK, PUSH, SKIP = range(3)  # how an atom is played
@@ -75,6 +83,8 @@ STANDOFF = 0.055  # a push's start: the hand's centre this far behind the contac
 INSET = 0.01  # a push's contact point: this far in from the part's far end, towards the axis
 FINGER = 0.01  # a push's drive: the hand's centre this far behind the point it pushes to
 AHEAD = 0.05  # how far along its path a joint atom's drive aims ahead of the contact point
+TOP_DRAWER = 0.02  # m: a drawer whose cabinet rises no higher over its top is the top one
+TURNED = 0.05  # rad: the hand's heading counts as reached within this
 STROKE = 25  # control steps a push's drive gets; if the joint is not past by then, the hand
 # goes up and comes down behind the part again (a long push wedges the fingers on a knob)
 WIDE_HINGE = 0.1  # a hinge whose contact point lies farther from its axis is a door
@@ -93,6 +103,8 @@ class Plan:
     release_z: np.ndarray  # PICK: object-origin height over the target point when let go
     axis: np.ndarray  # a joint atom: the hinge's axis in the moving body's frame (atoms, 3)
     anchor: np.ndarray  # a joint atom: the hinge's anchor in the moving body's frame
+    slide: np.ndarray  # a joint atom: a slide (a drawer), else a hinge (atoms,)
+    yaw: np.ndarray  # a drawer: the hand's heading (world yaw, rad) to push it with
     sign: np.ndarray  # a joint atom: +1 where the goal wants the joint above its threshold
     threshold: np.ndarray  # a joint atom: the goal's threshold on the joint's position
     coverage: str
@@ -125,6 +137,11 @@ def _colliding_box(m: mujoco.MjModel, d: mujoco.MjData, body: int) -> tuple[np.n
     return np.min([b[0] for b in boxes], axis=0), np.max([b[1] for b in boxes], axis=0)
 
 
+def _quarter_turn(yaw: float) -> float:
+    """A heading a quarter turn from `yaw`, wrapped to (-pi, pi]."""
+    return float(np.angle(np.exp(1j * (yaw + np.pi / 2))))
+
+
 def closing_axis(m: mujoco.MjModel, d: mujoco.MjData, finger_joint: str) -> np.ndarray:
     """The world axis (x or y) the gripper's fingers close along, at `d`."""
     j = m.joint(finger_joint)
@@ -146,8 +163,10 @@ def plan_for(task: str) -> Plan | None:
     d.qpos[:] = state[1 : 1 + m.nq]
     mujoco.mj_forward(m, d)
     axis = closing_axis(m, d, export.meta["gripper_joints"][0])
+    hand = d.xmat[m.body(export.meta["eef_body"]).id].reshape(3, 3)
+    yaw = float(np.arctan2(hand[1, 0], hand[0, 0]))
     rows = [
-        _joint_plan(m, d, atom) if atom["kind"] == "joints" else _atom_plan(m, d, atom, axis)
+        _joint_plan(m, d, atom, yaw) if atom["kind"] == "joints" else _atom_plan(m, d, atom, axis)
         for atom in atoms
     ]
     played = [r for r in rows if r["kind"] != SKIP]
@@ -164,6 +183,8 @@ def plan_for(task: str) -> Plan | None:
         release_z=stack("release_z"),
         axis=vec("axis"),
         anchor=vec("anchor"),
+        slide=stack("slide", bool),
+        yaw=stack("yaw"),
         sign=stack("sign"),
         threshold=stack("threshold"),
         coverage="covered" if full else "partly",
@@ -202,43 +223,70 @@ def _atom_plan(
     }
 
 
-def _joint_plan(m: mujoco.MjModel, d: mujoco.MjData, atom: dict[str, Any]) -> dict[str, Any]:
+def _joint_plan(
+    m: mujoco.MjModel, d: mujoco.MjData, atom: dict[str, Any], yaw: float
+) -> dict[str, Any]:
     """One joint atom's contact point, axis and anchor (in the moving body's frame), or SKIP
-    where the expert does not play it (see the module docstring)."""
+    where the expert does not play it (see the module docstring); `yaw` is the hand's heading
+    at the initial state."""
     j = m.joint(atom["joints"][0])
-    if int(j.type[0]) != mujoco.mjtJoint.mjJNT_HINGE:
-        # A drawer. With the hand pointing down and its fingers closing along the drawer's
-        # axis, the palm spans 21 cm along it: pushed shut (`libero_90/0`), the drawer went
-        # 12 of its 15 cm before the palm met the cabinet; to open one (`libero_goal/0`) the
-        # palm stopped on the cabinet above the handle.
-        return {"kind": SKIP}
     body = int(j.bodyid[0])
     rot, origin = d.xmat[body].reshape(3, 3), d.xpos[body]
     axis_w, anchor_w = rot @ m.jnt_axis[j.id], d.xanchor[j.id]
     boxes = _geom_boxes(m, d, body)
-    top = max(high[2] for _, high in boxes)
-    faces = [  # the face centres of the tallest parts' boxes
-        ((low + high) / 2 + np.eye(3)[k] * side * (high - low)[k] / 2, (low, high))
-        for low, high in boxes
-        if high[2] >= top - 0.02
-        for k in range(3)
-        for side in (-1, 1)
-    ]
-    radial = lambda p: float(np.linalg.norm(np.cross(axis_w, p - anchor_w)))  # noqa: E731
-    point, (low, high) = max(faces, key=lambda f: radial(f[0]))
-    if not closes(atom) and radial(point) > WIDE_HINGE:  # a door to open
-        return {"kind": SKIP}
-    # a little in from the far end (pushed at its tip, the part turns out from under the
-    # fingers and wedges them), high enough to clear what it stands on, low enough to push
-    lever = np.cross(axis_w, np.cross(point - anchor_w, axis_w))
-    point = point - INSET * lever / np.linalg.norm(lever)
+    sign = 1.0 if atom["above"][0] else -1.0
+    slide = int(j.type[0]) == mujoco.mjtJoint.mjJNT_SLIDE
+    if slide:
+        if not closes(atom):
+            # Opening a drawer needs its handle hooked or grasped: from above, the palm
+            # (21 cm across the fingers' closing axis) stopped on the cabinet over
+            # `libero_goal/0`'s handle, and turned, the closed fingers do not fit the 2 cm
+            # between handle and front.
+            return {"kind": SKIP}
+        # Shut: push the handle's outer face with the hand turned a quarter about the
+        # vertical, so the palm lies along the front. Unturned, it spans the drawer's axis
+        # and met the cabinet 3 cm short (`libero_90/0`). Turned, it still meets the
+        # cabinet over any drawer but the top one (`libero_90/22`'s bottom drawer: 3.7 cm
+        # short): those are not played.
+        fixture = body
+        while m.body_parentid[fixture] != 0:
+            fixture = int(m.body_parentid[fixture])
+        over = max(b[1][2] for b in _geom_boxes(m, d, fixture)) - max(b[1][2] for b in boxes)
+        if over > TOP_DRAWER:
+            return {"kind": SKIP}
+        opening = -sign * axis_w
+        low, high = max(
+            boxes,
+            key=lambda b: (b[0] + b[1]) @ opening / 2 + np.abs(b[1] - b[0]) @ np.abs(opening) / 2,
+        )
+        point = (low + high) / 2 + opening * (np.abs(high - low) @ np.abs(opening)) / 2
+    else:
+        top = max(high[2] for _, high in boxes)
+        faces = [  # the face centres of the tallest parts' boxes
+            ((low + high) / 2 + np.eye(3)[k] * side * (high - low)[k] / 2, (low, high))
+            for low, high in boxes
+            if high[2] >= top - 0.02
+            for k in range(3)
+            for side in (-1, 1)
+        ]
+        radial = lambda p: float(np.linalg.norm(np.cross(axis_w, p - anchor_w)))  # noqa: E731
+        point, (low, high) = max(faces, key=lambda f: radial(f[0]))
+        if not closes(atom) and radial(point) > WIDE_HINGE:  # a door to open
+            return {"kind": SKIP}
+        # a little in from the far end (pushed at its tip, the part turns out from under the
+        # fingers and wedges them)
+        lever = np.cross(axis_w, np.cross(point - anchor_w, axis_w))
+        point = point - INSET * lever / np.linalg.norm(lever)
+    point = point.copy()  # high enough to clear what the part stands on, low enough to push
     point[2] = min(high[2] - 0.015, max((low[2] + high[2]) / 2, low[2] + 0.03))
     return {
         "kind": PUSH,
         "point": rot.T @ (point - origin),
         "axis": np.asarray(m.jnt_axis[j.id], np.float64),
         "anchor": rot.T @ (anchor_w - origin),
-        "sign": 1.0 if atom["above"][0] else -1.0,
+        "slide": slide,
+        "yaw": _quarter_turn(yaw),
+        "sign": sign,
         "threshold": float(atom["threshold"][0]),
     }
 
@@ -285,6 +333,15 @@ def _pick_targets(plan: Plan, row: jax.Array, atom: jax.Array, eef: jax.Array, h
     )
 
 
+def _heading_error(axis_angle: jax.Array, yaw: jax.Array) -> jax.Array:
+    """`yaw` less the hand's heading (the yaw of its x axis), wrapped to (-pi, pi]; the hand's
+    orientation as lerobot's state gives it (axis-angle)."""
+    angle = fo.norm(axis_angle)
+    x = _rotate(jnp.array([1.0, 0.0, 0.0]), axis_angle / jnp.maximum(angle, 1e-9), angle)
+    d = yaw - jnp.arctan2(x[1], x[0])
+    return jnp.arctan2(jnp.sin(d), jnp.cos(d))
+
+
 def _rotate(v: jax.Array, axis: jax.Array, angle: jax.Array) -> jax.Array:
     """`v` turned by `angle` about the unit `axis` (Rodrigues)."""
     c, s = jnp.cos(angle), jnp.sin(angle)
@@ -293,17 +350,18 @@ def _rotate(v: jax.Array, axis: jax.Array, angle: jax.Array) -> jax.Array:
 
 def _joint_targets(plan: Plan, row: jax.Array, atom: jax.Array, hold: jax.Array):
     """A joint atom's target per phase (8, 3), and whether the joint is past the goal's
-    threshold. The contact point turns about the hinge: the drive aims `AHEAD` along its
-    arc."""
+    threshold. The drive aims `AHEAD` along the contact point's path: a line on a slide, an
+    arc about a hinge."""
     pos, q, rot = row[:3], row[3], quat_to_mat(row[6:10])
     point = pos + fo.mv(rot, jnp.asarray(plan.point)[atom])
     axis = fo.mv(rot, jnp.asarray(plan.axis)[atom])
     lever = point - (pos + fo.mv(rot, jnp.asarray(plan.anchor)[atom]))
-    sign = jnp.asarray(plan.sign)[atom]
-    tangent = fo.cross(axis, lever)
+    sign, slide = jnp.asarray(plan.sign)[atom], jnp.asarray(plan.slide)[atom]
+    tangent = jnp.where(slide, axis, fo.cross(axis, lever))
     way = sign * tangent / jnp.maximum(fo.norm(tangent), 1e-6)  # where the point must move
     radius = jnp.maximum(fo.norm(lever), 0.02)
-    ahead = point - lever + _rotate(lever, axis, sign * AHEAD / radius)  # along its arc
+    arc = point - lever + _rotate(lever, axis, sign * AHEAD / radius)
+    ahead = jnp.where(slide, point + way * AHEAD, arc)
     start, drive = point - way * STANDOFF, ahead - way * FINGER
     up = jnp.array([0.0, 0.0, ABOVE])
     targets = jnp.stack([start + up, start, hold, drive, hold, hold, hold, hold - way * AHEAD + up])
@@ -350,7 +408,12 @@ def act(plan: Plan, state: jax.Array, expert: jax.Array, pstate: dict) -> tuple[
     targets = jnp.where(kind == PICK, _pick_targets(plan, row, atom, eef, hold), joint_targets)
     target = jnp.where(kind == SKIP, eef, targets[phase])
     action = _toward(target, eef, jnp.asarray(GRIP)[kind, phase])
-    error = jnp.linalg.norm(target - eef)
+    # a drawer's push turns the hand first (robosuite turns its goal by the action's
+    # axis-angle, 0.5 rad per unit, in world axes); other atoms hold the heading
+    turn = _heading_error(state[3:6], jnp.asarray(plan.yaw)[atom])
+    turning = (kind == PUSH) & jnp.asarray(plan.slide)[atom] & (jnp.abs(turn) > TURNED)
+    action = action.at[5].set(jnp.where(turning, jnp.clip(turn / 0.5, -1.0, 1.0), 0.0))
+    error = jnp.linalg.norm(target - eef) + jnp.where(turning, 1.0, 0.0)
     reached = jnp.where(
         (kind != PICK) & (phase == LIFT), past, error < jnp.asarray(REACHED)[kind, phase]
     )
@@ -361,8 +424,13 @@ def act(plan: Plan, state: jax.Array, expert: jax.Array, pstate: dict) -> tuple[
         & (atom + 1 < plan.atoms)
         & ((error < RETREATED) | (count + 1 >= PHASE_LIMIT) | (kind == SKIP))
     )
-    # a push's stroke that ends short of the threshold: up, and behind the part again
-    again = (kind == PUSH) & (phase == LIFT) & ~past & (count + 1 >= STROKE)
+    # a push's stroke that ends short of the threshold: up, and behind the part again; a
+    # grasp that closed on nothing: up, and down over the object again (carried on, the
+    # empty hand's carry height, set from where the object is, would climb without bound)
+    stroke_short = (kind == PUSH) & (phase == LIFT) & ~past & (count + 1 >= STROKE)
+    holding = (phase == LIFT) | (phase == CARRY_OVER) | (phase == LOWER)
+    missed = (kind == PICK) & holding & (state[6] - state[7] < EMPTY)
+    again = stroke_short | missed
     moved = advance | next_atom
     return action, {
         "phase": jnp.where(next_atom | again, APPROACH, phase + advance.astype(jnp.int32)),

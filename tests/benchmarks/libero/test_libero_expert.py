@@ -90,7 +90,9 @@ def test_coverage_names_what_the_expert_plays() -> None:
     assert plan_for("libero_10/4").atoms == 2 and plan_for("libero_object/0").atoms == 1
     assert coverage("libero_goal/7") == "covered"  # turn on the stove
     assert coverage("libero_10/8") == "covered"  # the stove on, then both moka pots on it
-    assert coverage("libero_10/3") == "partly"  # the bowl into the drawer, then shut it
+    assert coverage("libero_90/0") == "covered"  # shut the cabinet's top drawer
+    assert coverage("libero_10/3") == "partly"  # the bowl into the bottom drawer, not shut
+    assert coverage("libero_90/22") == "not covered"  # shut a bottom drawer
     assert coverage("libero_goal/0") == "not covered"  # open a drawer
     assert coverage("libero_90/35") == "not covered"  # open the microwave
     assert plan_for("libero_goal/0") is None
@@ -103,18 +105,31 @@ def test_coverage_names_what_the_expert_plays() -> None:
         make_policy("libero-expert", scene)
 
 
-@pytest.mark.heavy  # ~150 control steps on each side
-def test_knob_turned_on_the_mirror_replays_on_libero() -> None:
-    """`libero_goal/7` (turn on the stove): the expert pushes the knob round on the mirror;
-    LIBERO succeeds at the same step on the same actions, its knob's angle (the expert
-    entry's joint position) where the mirror has it. Before, the expert played no joint atom
-    and this task was not covered."""
-    task = "libero_goal/7"
+@pytest.mark.heavy  # ~60-150 control steps on each side
+@pytest.mark.parametrize(
+    ("task", "joint_tolerance", "same_step"),
+    [
+        # turn on the stove: the knob pushed round in strokes (radians)
+        ("libero_goal/7", 0.02, True),
+        # shut the top drawer: the hand turned a quarter, the front pushed (metres). At the
+        # first contact LIBERO's drawer starts one control step later than the mirror's and
+        # then lags it by 8.5 mm, so the mirror's actions end just short of LIBERO's goal;
+        # closed loop both succeed (BENCHMARKS.md, issue 37)
+        ("libero_90/0", 0.01, False),
+    ],
+)
+def test_joint_atom_played_on_the_mirror_replays_on_libero(
+    task: str, joint_tolerance: float, same_step: bool
+) -> None:
+    """The expert plays a joint atom closed loop on the mirror; on the same actions LIBERO's
+    joint (the expert entry's joint position) follows the mirror's, and the hand agrees to
+    2 mm. Before, the expert played no joint atom and these tasks were not covered."""
     scene = LiberoMjx(LiberoMjxOptions(task=task), backend="c")
     actions, obs, success_step = expert_episode(scene)
     with libero_reference(task) as libero:
         ref = libero.rollout(SEED % 50, actions)
-    assert int(np.argmax(ref["success"])) == success_step and ref["success"][-1]
-    knob = float(np.abs(obs[:, 11] - ref["expert"][:, 3]).max())  # radians
+    if same_step:
+        assert int(np.argmax(ref["success"])) == success_step and ref["success"][-1]
+    joint = float(np.abs(obs[:, 11] - ref["expert"][:, 3]).max())
     hand = float(np.abs(obs[:, :3] - ref["state"][:, :3]).max())
-    assert knob < 0.02 and hand < 2e-3, (knob, hand)
+    assert joint < joint_tolerance and hand < 2e-3, (joint, hand)

@@ -37,7 +37,8 @@ task's model (the mirror's export, `assets.load_task`) at LIBERO's initial state
   at: the object's bottom 2 cm above the target's top (its highest colliding geom, or the
   region's top face);
 - for a joint atom, in the moving body's frame: the joint's axis and anchor, and the contact
-  point, the point of the moving part's tallest colliding geoms farthest from the axis.
+  point: on a hinge the point of the moving part's tallest colliding geoms farthest from the
+  axis, on a drawer its handle's outer face.
 
 Phases (the policy state, with the atom being played): approach above the start point,
 descend, close the gripper, lift (a joint atom: drive along the path), carry over the
@@ -101,8 +102,8 @@ class Plan:
     point: np.ndarray
     site_pos: np.ndarray  # PICK: the target point in the target body's frame (atoms, 3)
     release_z: np.ndarray  # PICK: object-origin height over the target point when let go
-    axis: np.ndarray  # a joint atom: the hinge's axis in the moving body's frame (atoms, 3)
-    anchor: np.ndarray  # a joint atom: the hinge's anchor in the moving body's frame
+    axis: np.ndarray  # a joint atom: the joint's axis in the moving body's frame (atoms, 3)
+    anchor: np.ndarray  # a hinge: its anchor in the moving body's frame
     slide: np.ndarray  # a joint atom: a slide (a drawer), else a hinge (atoms,)
     yaw: np.ndarray  # a drawer: the hand's heading (world yaw, rad) to push it with
     sign: np.ndarray  # a joint atom: +1 where the goal wants the joint above its threshold
@@ -299,7 +300,7 @@ def _mat(quat: Any) -> np.ndarray:
 
 def coverage(task: str) -> str:
     """Whether the expert plays `task`'s goal: ``covered`` (every atom), ``partly`` (some:
-    a third atom, or a door to open), or ``not covered`` (none)."""
+    beside them a drawer or a door it does not play), or ``not covered`` (none)."""
     plan = plan_for(task)
     return "not covered" if plan is None else plan.coverage
 

@@ -341,6 +341,11 @@ def expert_atoms(atoms: list[dict[str, Any]]) -> list[dict[str, Any]]:
     return ordered[:EXPERT_ATOMS]
 
 
+def moving_body(model: Any, joint: str) -> str:
+    """The name of the body `joint` moves (`model` a `mujoco.MjModel`)."""
+    return model.body(int(model.joint(joint).bodyid[0])).name
+
+
 def expert_ids(atoms: list[dict[str, Any]], model: Any, index: Any) -> list[tuple[int, int, int]]:
     """Per atom of `expert_atoms`, what its ``expert`` row reads (`expert_entry`): (moved
     body, target body, -1) for a pick-and-place atom, (moving body, moving body, the joint's
@@ -349,9 +354,8 @@ def expert_ids(atoms: list[dict[str, Any]], model: Any, index: Any) -> list[tupl
     ids = []
     for a in expert_atoms(atoms):
         if a["kind"] == "joints":
-            joint = model.joint(a["joints"][0])
-            body = index(model.body(int(joint.bodyid[0])).name)
-            ids.append((body, body, int(joint.qposadr[0])))
+            body = index(moving_body(model, a["joints"][0]))
+            ids.append((body, body, int(model.joint(a["joints"][0]).qposadr[0])))
         else:
             ids.append((index(a["obj"]), index(a.get("target") or a["site_body"]), -1))
     return ids

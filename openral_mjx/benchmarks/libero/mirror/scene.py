@@ -49,7 +49,12 @@ import mujoco
 import numpy as np
 
 from openral_mjx.benchmarks.libero.assets import TaskModel, load_sampled, load_task, physics_spec
-from openral_mjx.benchmarks.libero.export import EXPERT_SIZE, expert_entry, expert_ids
+from openral_mjx.benchmarks.libero.export import (
+    EXPERT_SIZE,
+    expert_entry,
+    expert_ids,
+    moving_body,
+)
 from openral_mjx.benchmarks.libero.host_scene import instruction as host_instruction
 from openral_mjx.benchmarks.libero.mirror.controller import (
     ControllerState,
@@ -180,7 +185,7 @@ def joint_bodies(goal: Goal, model: mujoco.MjModel) -> tuple[str, ...]:
     names: list[str] = []
     for atom in goal.atoms:
         for joint in atom.get("joints", ()):
-            name = model.body(int(model.joint(joint).bodyid[0])).name
+            name = moving_body(model, joint)
             if name not in names and name not in goal.bodies:
                 names.append(name)
     return tuple(names)

@@ -37,7 +37,8 @@ def _busy(intervals: list[tuple[float, float]]) -> float:
 
 
 def kernel_summary(trace_dir: Path, top: int = 12) -> dict[str, Any]:
-    """Kernel time (ms) by kind, the `top` kernels of each kind, GPU busy time and span."""
+    """Kernel time (ms) and launches by kind, the `top` kernels of each kind, GPU busy time
+    and span."""
     path = next(Path(trace_dir).glob("plugins/profile/*/perfetto_trace.json.gz"))
     with gzip.open(path) as f:
         data = json.load(f)
@@ -71,6 +72,7 @@ def kernel_summary(trace_dir: Path, top: int = 12) -> dict[str, Any]:
     span = max(b for _, b in intervals) - min(a for a, _ in intervals) if intervals else 0.0
     return {
         "kernel_ms": {k: round(v, 1) for k, v in by_kind.items()},
+        "launches": {k: sum(v[1] for n, v in by_name.items() if kind(n) == k) for k in by_kind},
         "busy_ms": round(_busy(intervals), 1),
         "span_ms": round(span, 1),
         "top": tops,

@@ -30,6 +30,8 @@ compiles and steps on `mjx`. `mjx-forward`: one env's `mjx.forward` on the mjx m
 contact slots and constraint rows (`--max-contact-points K`: MJX's cap on contacts). JSON
 lines go to `--out` (appended), one per task.
 `--warp-graph MODE` (`raw`): MuJoCo-Warp's CUDA graph capture mode (the graph-mode table).
+`--layers-as-loop` (`raw`): the policy's fixed-order layers on the GPU as the elementwise loop
+they were before 2026-11-28, not `batch_invariant.rows_matmul`: the A/B of the MLP's share.
 `--poses-before-step` (`mirror`, `raw`): the mirror reads the poses `mj_step` leaves, one
 physics step old, as before 2026-11-26: the A/B of what observing the state the step ends in
 costs (one more kinematics pass per step).
@@ -52,6 +54,7 @@ import numpy as np
 from gpu_trace import kernel_summary
 
 from openral_mjx.benchmarks.metaworld.mirror import task as mw
+from openral_mjx.core import fixed_order
 from openral_mjx.evaluation import build_scene, run_evaluation
 from openral_mjx.evaluation.suite import mps_running
 from openral_mjx.policies.mlp import MlpConfig, init_params, mlp_policy, save_mlp
@@ -108,6 +111,7 @@ def observe_poses_before_step() -> None:
 
 POSES = {"after_step": True}
 GRAPH = {"mode": "WARP"}
+LAYERS = {"way": "tiles"}  # the policy's fixed-order layers on the GPU (`--layers-as-loop`)
 
 
 def use_warp_graph_mode(mode: str) -> None:
@@ -330,6 +334,7 @@ def raw(args: argparse.Namespace) -> None:
                     "kind": "raw",
                     "poses_after_step": POSES["after_step"],
                     "warp_graph": GRAPH["mode"],
+                    "policy_layers": LAYERS["way"],
                     "task": task,
                     "backend": args.backend,
                     "device": str(jax.devices()[0].device_kind),
@@ -612,6 +617,7 @@ def main() -> int:
     parser.add_argument(
         "--max-contact-points", type=int, help="`mjx-forward`: MJX's cap instead of the mirror's"
     )
+    parser.add_argument("--layers-as-loop", action="store_true", help="see module doc")
     parser.add_argument(
         "--warp-graph",
         choices=("WARP", "JAX", "NONE", "WARP_STAGED", "WARP_STAGED_EX"),
@@ -622,6 +628,9 @@ def main() -> int:
         observe_poses_before_step()
     if args.warp_graph:
         use_warp_graph_mode(args.warp_graph)
+    if args.layers_as_loop:
+        fixed_order.rows_matmul = jax.vmap(fixed_order._loop, in_axes=(0, None, None))
+        LAYERS["way"] = "loop"
     if not args.no_cache:
         enable_compilation_cache()  # as the CLIs do: a repeated run loads its executables
     print(" ".join(["python", *sys.argv]), flush=True)

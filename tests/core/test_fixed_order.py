@@ -32,3 +32,34 @@ def test_solve_spd_solves_and_inverts() -> None:
     np.testing.assert_allclose(fo.solve_spd(a, b), np.linalg.solve(a, b), rtol=1e-4, atol=1e-5)
     inverse = np.asarray(fo.inv_spd(a), np.float64)
     np.testing.assert_allclose(inverse @ a, np.eye(6), atol=1e-5)
+
+
+def test_dense_is_the_same_bits_at_any_batch_size_alone_or_with_per_env_weights() -> None:
+    """On the CPU: `dense` equals x @ W + b; a batch's first rows are the same bits as a
+    smaller batch's (and as a vector alone), and the per-env-weights path agrees too."""
+    import jax
+
+    x = RNG.normal(size=(9, 40)).astype(np.float32)
+    w = RNG.normal(size=(40, 7)).astype(np.float32)
+    b = RNG.normal(size=7).astype(np.float32)
+    shared = jax.jit(jax.vmap(fo.dense, in_axes=(0, None, None)))
+    out = np.asarray(shared(x, w, b))
+    np.testing.assert_allclose(out, np.float64(x) @ w + b, rtol=1e-5, atol=1e-5)
+    assert np.array_equal(np.asarray(shared(x[:2], w, b)), out[:2])
+    assert np.array_equal(np.asarray(jax.jit(fo.dense)(x[4], w, b)), out[4])
+    per_env = jax.jit(jax.vmap(fo.dense))(x, np.repeat(w[None], 9, 0), np.repeat(b[None], 9, 0))
+    assert np.array_equal(np.asarray(per_env), out)
+
+
+def test_the_gpus_fixed_tile_product_pads_and_multiplies_right() -> None:
+    """`rows_matmul` (the GPU's path, run by Pallas's interpreter here) against numpy for
+    shapes that fill no tile: rows, inputs and outputs are padded and cut back."""
+    from openral_mjx.core.batch_invariant import rows_matmul
+
+    for n, d, m in [(3, 39, 256), (130, 256, 4), (64, 32, 64)]:
+        x = RNG.normal(size=(n, d)).astype(np.float32)
+        w = RNG.normal(size=(d, m)).astype(np.float32)
+        b = RNG.normal(size=m).astype(np.float32)
+        out = np.asarray(rows_matmul(x, w, b, interpret=True))
+        assert out.shape == (n, m)
+        np.testing.assert_allclose(out, np.float64(x) @ w + b, rtol=1e-5, atol=2e-5)

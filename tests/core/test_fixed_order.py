@@ -63,3 +63,16 @@ def test_the_gpus_fixed_tile_product_pads_and_multiplies_right() -> None:
         out = np.asarray(rows_matmul(x, w, b, interpret=True))
         assert out.shape == (n, m)
         np.testing.assert_allclose(out, np.float64(x) @ w + b, rtol=1e-5, atol=2e-5)
+
+
+def test_a_batch_goes_to_the_fixed_tiles_on_cuda_and_to_the_loop_on_the_cpu() -> None:
+    """The platform dispatch, from the lowered programs (no GPU needed to lower for one)."""
+    import jax
+    import jax.numpy as jnp
+
+    layer = jax.jit(jax.vmap(fo.dense, in_axes=(0, None, None)))
+    traced = layer.trace(jnp.zeros((8, 40)), jnp.zeros((40, 7)), jnp.zeros(7))
+    cuda = traced.lower(lowering_platforms=("cuda",)).as_text()
+    cpu = traced.lower(lowering_platforms=("cpu",)).as_text()
+    assert "triton" in cuda.lower() and "while" not in cuda
+    assert "triton" not in cpu.lower() and "while" in cpu

@@ -10,7 +10,11 @@ turns on first, then the pick-and-place atoms, then what closes or turns off):
   away from where it must move, and pushes it along its path (an arc about a hinge, a line
   along a slide; for a drawer the hand first turns a quarter about the vertical, so that its
   palm lies along the cabinet's front) in strokes of `STROKE` steps, going up and down
-  behind the part again after each, until the joint is past the goal's threshold.
+  behind the part again after each, until the joint is past the goal's threshold. Pushing a
+  hinge back to rest (a knob off, a door shut) the drive aims `PRESS` low, so the hand presses
+  down as it pushes (level, it rode 2 cm up over a knob's handle and the knob turned back:
+  `libero_90/39`); turning a knob on it pushes level (pressing, LIBERO's knob stuck on 4 of
+  `libero_goal/7`'s 50 seeds).
 
 Not played (the atom is skipped; `coverage` says which tasks the expert plays in full):
 opening a drawer (hooking or grasping its handle: from above the palm, 21 cm across the
@@ -38,7 +42,7 @@ task's model (the mirror's export, `assets.load_task`) at LIBERO's initial state
   region's top face);
 - for a joint atom, in the moving body's frame: the joint's axis and anchor, and the contact
   point: on a hinge the point of the moving part's tallest colliding geoms farthest from the
-  axis, on a drawer its handle's outer face.
+  axis (found with the joint at zero, however it starts), on a drawer its handle's outer face.
 
 Phases (the policy state, with the atom being played): approach above the start point,
 descend, close the gripper, lift (a joint atom: drive along the path), carry over the
@@ -83,6 +87,7 @@ PICK, PUSH, SKIP = range(3)  # how an atom is played
 STANDOFF = 0.055  # a push's start: the hand's centre this far behind the contact point
 INSET = 0.01  # a push's contact point: this far in from the part's far end, towards the axis
 FINGER = 0.01  # a push's drive: the hand's centre this far behind the point it pushes to
+PRESS = 0.01  # a hinge's push back to rest aims this far low: the hand presses, not riding up
 AHEAD = 0.05  # how far along its path a joint atom's drive aims ahead of the contact point
 TOP_DRAWER = 0.02  # m: a drawer whose cabinet rises no higher over its top is the top one
 TURNED = 0.05  # rad: the hand's heading counts as reached within this
@@ -108,6 +113,7 @@ class Plan:
     yaw: np.ndarray  # a drawer: the hand's heading (world yaw, rad) to push it with
     sign: np.ndarray  # a joint atom: +1 where the goal wants the joint above its threshold
     threshold: np.ndarray  # a joint atom: the goal's threshold on the joint's position
+    press: np.ndarray  # a push's drive aims this far below the contact point (atoms,)
     coverage: str
 
     @property
@@ -188,6 +194,7 @@ def plan_for(task: str) -> Plan | None:
         yaw=stack("yaw"),
         sign=stack("sign"),
         threshold=stack("threshold"),
+        press=stack("press"),
         coverage="covered" if full else "partly",
     )
 
@@ -232,11 +239,17 @@ def _joint_plan(
     at the initial state."""
     j = m.joint(atom["joints"][0])
     body = int(j.bodyid[0])
+    slide = int(j.type[0]) == mujoco.mjtJoint.mjJNT_SLIDE
+    if not slide:
+        # A hinged part as its joint's zero sets it: the world-axis bounds of its geoms are
+        # then as tight as its model draws them. Turned (a knob already on, 0.98 rad, to be
+        # turned off), a bar's bounds are a square whose face centres lie off the bar, and the
+        # hand pushed it 2 cm from its axis, where it would not turn (`libero_90/39`).
+        d = _with_joint_at(m, d, j, 0.0)
     rot, origin = d.xmat[body].reshape(3, 3), d.xpos[body]
     axis_w, anchor_w = rot @ m.jnt_axis[j.id], d.xanchor[j.id]
     boxes = _geom_boxes(m, d, body)
     sign = 1.0 if atom["above"][0] else -1.0
-    slide = int(j.type[0]) == mujoco.mjtJoint.mjJNT_SLIDE
     if slide:
         if not closes(atom):
             # Opening a drawer needs its handle hooked or grasped: from above, the palm
@@ -289,7 +302,17 @@ def _joint_plan(
         "yaw": _quarter_turn(yaw),
         "sign": sign,
         "threshold": float(atom["threshold"][0]),
+        "press": PRESS if closes(atom) and not slide else 0.0,
     }
+
+
+def _with_joint_at(m: mujoco.MjModel, d: mujoco.MjData, joint: Any, q: float) -> mujoco.MjData:
+    """A copy of `d` with `joint`'s position set to `q`, its poses recomputed."""
+    out = mujoco.MjData(m)
+    out.qpos[:] = d.qpos
+    out.qpos[int(joint.qposadr[0])] = q
+    mujoco.mj_kinematics(m, out)
+    return out
 
 
 def _mat(quat: Any) -> np.ndarray:
@@ -363,7 +386,8 @@ def _joint_targets(plan: Plan, row: jax.Array, atom: jax.Array, hold: jax.Array)
     radius = jnp.maximum(fo.norm(lever), 0.02)
     arc = point - lever + _rotate(lever, axis, sign * AHEAD / radius)
     ahead = jnp.where(slide, point + way * AHEAD, arc)
-    start, drive = point - way * STANDOFF, ahead - way * FINGER
+    press = jnp.asarray(plan.press)[atom]
+    start, drive = point - way * STANDOFF, ahead - way * FINGER - jnp.array([0.0, 0.0, 1.0]) * press
     up = jnp.array([0.0, 0.0, ABOVE])
     targets = jnp.stack([start + up, start, hold, drive, hold, hold, hold, hold - way * AHEAD + up])
     return targets, sign * (q - jnp.asarray(plan.threshold)[atom]) > 0

@@ -54,3 +54,39 @@ def test_a_joint_atom_s_row_holds_the_moving_body_s_pose_and_the_joint() -> None
     np.testing.assert_array_equal(bowl[:6], np.concatenate([pos[1], pos[2]]).astype(np.float32))
     np.testing.assert_array_equal(bowl[6:], quat[2].astype(np.float32))
     assert not empty.any()
+
+
+KNOB = """
+<mujoco>
+  <worldbody>
+    <body name="stove" pos="0.1 0.2 0.9">
+      <geom type="box" size="0.1 0.1 0.01"/>
+      <body name="knob" pos="0 0 0.01">
+        <joint name="knob" type="hinge" axis="0 0 1" range="-0.005 2.1"/>
+        <geom type="box" size="0.006 0.045 0.012" pos="0 0 0.025"/>
+      </body>
+    </body>
+  </worldbody>
+</mujoco>
+"""
+
+
+def test_a_knob_is_pushed_at_its_bar_however_far_it_starts_turned() -> None:
+    """The contact point (in the knob's frame) is found with the joint at zero: the bar's end,
+    on the bar, whether the knob starts at 0 or turned 0.98 rad (a knob to turn off). Found in
+    the turned pose, the world-axis bounds' face centre lay 1.5 cm off the bar."""
+    import mujoco
+
+    from openral_mjx.benchmarks.libero.expert import PUSH, _joint_plan
+
+    m = mujoco.MjModel.from_xml_string(KNOB)
+    points = []
+    for q in (0.0, 0.98):
+        d = mujoco.MjData(m)
+        d.qpos[0] = q
+        mujoco.mj_kinematics(m, d)
+        plan = _joint_plan(m, d, _joint("knob", 0.0, False), yaw=0.0)
+        assert plan["kind"] == PUSH and plan["sign"] == -1.0
+        points.append(plan["point"])
+    np.testing.assert_allclose(points[0], points[1], atol=1e-9)
+    assert abs(points[0][0]) < 1e-9 and 0.03 < abs(points[0][1]) < 0.045  # on the bar, inset

@@ -24,7 +24,6 @@ import numpy as np
 
 from openral_mjx.core import batch_invariant as bi
 from openral_mjx.core import fixed_order as fo
-from openral_mjx.core.batch_invariant import rows_matmul
 from openral_mjx.policies.mlp import MlpConfig, init_params
 
 CONFIG = MlpConfig(
@@ -35,8 +34,8 @@ CONFIG = MlpConfig(
     hidden=(256, 256, 256),
 )
 WAYS = {
-    "loop": jax.vmap(fo._loop, in_axes=(0, None, None)),
-    "tiles": lambda x, w, b: rows_matmul(x, w, b, interpret=jax.default_backend() == "cpu"),
+    "loop": fo.loop_rows,
+    "tiles": lambda x, w, b: bi.rows_matmul(x, w, b, interpret=jax.default_backend() == "cpu"),
     "xla": lambda x, w, b: x @ w + b,
 }
 

@@ -629,7 +629,7 @@ def main() -> int:
     if args.warp_graph:
         use_warp_graph_mode(args.warp_graph)
     if args.layers_as_loop:
-        fixed_order.rows_matmul = jax.vmap(fixed_order._loop, in_axes=(0, None, None))
+        fixed_order.rows_matmul = fixed_order.loop_rows
         LAYERS["way"] = "loop"
     if not args.no_cache:
         enable_compilation_cache()  # as the CLIs do: a repeated run loads its executables

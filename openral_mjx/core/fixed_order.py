@@ -110,6 +110,10 @@ def _loop(x: jax.Array, kernel: jax.Array, bias: jax.Array) -> jax.Array:
     return jax.lax.fori_loop(1, kernel.shape[0], add, bias + x[0] * kernel[0], unroll=8)
 
 
+# A batch of vectors (n, d) through the layer by the loop, one vector at a time.
+loop_rows = jax.vmap(_loop, in_axes=(0, None, None))
+
+
 def _rows(x: jax.Array, kernel: jax.Array, bias: jax.Array) -> jax.Array:
     """A batch of vectors (n, d) through the layer: the loop on the CPU; on an NVIDIA GPU the
     fixed-tile product of `batch_invariant` (the loop took ~4 ms a step at 65,536 envs for a
@@ -119,7 +123,7 @@ def _rows(x: jax.Array, kernel: jax.Array, bias: jax.Array) -> jax.Array:
         kernel,
         bias,
         cuda=rows_matmul,
-        default=jax.vmap(_loop, in_axes=(0, None, None)),  # the CPU, and any untried platform
+        default=loop_rows,  # the CPU, and any untried platform
     )
 
 

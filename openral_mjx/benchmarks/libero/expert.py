@@ -44,13 +44,14 @@ task's model (the mirror's export, `assets.load_task`) at LIBERO's initial state
   point: on a hinge the point of the moving part's tallest colliding geoms farthest from the
   axis (found with the joint at zero, however it starts), on a drawer its handle's outer face.
 
-Phases (the policy state, with the atom being played): approach above the start point,
-descend, close the gripper, lift (a joint atom: drive along the path), carry over the
-target, lower, open, retreat; after the retreat, the next atom's approach. A grasp whose
-fingers close on nothing (under `EMPTY` apart while lifting, carrying or lowering) starts the
-atom over from its approach. Position targets
-become OSC deltas (``(target - eef) / 0.05``, clipped to [-1, 1]: robosuite scales a unit
-action to 5 cm); the orientation is held (zero rotation).
+Phases (the policy state, with the atom being played): approach above the start point
+(from higher up, after one atom's retreat, the hand crosses to the next object level and then
+comes down, not on a diagonal through what it has just let go over), descend, close the
+gripper, lift (a joint atom: drive along the path), carry over the target, lower, open,
+retreat; after the retreat, the next atom's approach. A grasp whose fingers close on nothing
+(under `EMPTY` apart while lifting, carrying or lowering) starts the atom over from its
+approach. Position targets become OSC deltas (``(target - eef) / 0.05``, clipped to
+[-1, 1]: robosuite scales a unit action to 5 cm); the orientation is held (zero rotation).
 """
 
 from __future__ import annotations
@@ -76,6 +77,7 @@ SCENES = ("libero", "libero_mjx")
 OSC_SCALE = 0.05  # metres per unit of position action (robosuite's OSC_POSE output_max)
 FINGER_GAP = 0.07  # widest object part grasped across its middle
 ABOVE = 0.10  # approach height over the grasp point
+CROSSED = 0.02  # m: a hand crossing level to a grasp comes down once this near it
 CLEARANCE = 0.02  # the object's bottom over the target's top when let go
 CARRY = 0.12  # carrying height over the release height
 APPROACH, DESCEND, CLOSE, LIFT, CARRY_OVER, LOWER, OPEN, RETREAT = range(8)
@@ -342,9 +344,15 @@ def _pick_targets(plan: Plan, row: jax.Array, atom: jax.Array, eef: jax.Array, h
     release_z = jnp.asarray(plan.release_z)[atom]
     release = jnp.concatenate([goal[:2] - held[:2], goal[2:] + release_z - held[2:]])
     carry = release[2] + CARRY
+    # above the grasp point; from higher up (after an atom's retreat) the hand first crosses
+    # level, then comes down, as from `ABOVE`: on the diagonal down, a finger hooked the
+    # basket's wall it had just let go over and lifted the basket away (`libero_10/1`)
+    above = grasp + jnp.array([0.0, 0.0, ABOVE])
+    over = fo.norm(eef[:2] - grasp[:2]) < CROSSED
+    approach = jnp.where(over, above, above.at[2].max(hold[2]))
     return jnp.stack(
         [
-            grasp + jnp.array([0.0, 0.0, ABOVE]),  # APPROACH
+            approach,  # APPROACH
             grasp,  # DESCEND
             hold,  # CLOSE
             # LIFT: at least 5 cm up from where the object was grasped

@@ -90,3 +90,43 @@ def test_a_knob_is_pushed_at_its_bar_however_far_it_starts_turned() -> None:
         points.append(plan["point"])
     np.testing.assert_allclose(points[0], points[1], atol=1e-9)
     assert abs(points[0][0]) < 1e-9 and 0.03 < abs(points[0][1]) < 0.045  # on the bar, inset
+
+
+def test_a_pick_s_approach_crosses_at_the_height_the_hand_starts_from() -> None:
+    """After one atom's retreat the hand crosses to the next object at its own height, then
+    comes down to the approach point: on the diagonal down from over the basket, a finger
+    hooked the wall it had just let go over and lifted the basket away (`libero_10/1`: 2 of
+    10 seeds, now 9). The first approach (the hand's hold is unset, zero) and one from below
+    keep grasp + `ABOVE`."""
+    import jax.numpy as jnp
+
+    from openral_mjx.benchmarks.libero.expert import ABOVE, APPROACH, PICK, Plan, _pick_targets
+
+    zero = np.zeros((1, 3), np.float32)
+    plan = Plan(
+        kind=np.array([PICK], np.int32),
+        point=np.array([[0.0, 0.0, 0.01]], np.float32),
+        site_pos=zero,
+        release_z=np.array([0.1], np.float32),
+        axis=zero,
+        anchor=zero,
+        slide=np.array([False]),
+        yaw=np.zeros(1, np.float32),
+        sign=np.zeros(1, np.float32),
+        threshold=np.zeros(1, np.float32),
+        press=np.zeros(1, np.float32),
+        coverage="covered",
+    )
+    row = jnp.array([0.05, 0.06, 0.44, 0.0, 0.27, 0.43, 1.0, 0.0, 0.0, 0.0])  # object, target
+    grasp = np.array([0.05, 0.06, 0.45])
+    over = jnp.array([0.06, 0.07, 0.70])  # the hand, crossed: 1.4 cm from over the grasp
+    for hold_z, at, want_z in (
+        (0.70, None, 0.70),  # crossing from over the basket: level
+        (0.70, over, 0.45 + ABOVE),  # crossed: down to the approach point
+        (0.0, None, 0.45 + ABOVE),  # the first approach
+        (0.50, None, 0.45 + ABOVE),  # from below the approach point
+    ):
+        hold = jnp.array([0.0, 0.27, hold_z])
+        eef = hold if at is None else at
+        target = np.asarray(_pick_targets(plan, row, jnp.int32(0), eef, hold)[APPROACH])
+        np.testing.assert_allclose(target, [*grasp[:2], want_z], atol=1e-6)

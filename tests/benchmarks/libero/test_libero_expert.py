@@ -73,7 +73,14 @@ def test_two_atom_episode_replays_on_libero() -> None:
     """`libero_10/4` (both mugs onto their plates): the expert plays one atom, then the
     next, closed loop on the mirror; LIBERO succeeds at the same step on the same actions,
     with the second atom's object where the mirror has it. Before the expert played every
-    pick-and-place atom it moved the first mug only, and the task never succeeded."""
+    pick-and-place atom it moved the first mug only, and the task never succeeded.
+
+    The second mug is held to 8 mm, not the module's 2 mm: since the hand crosses level from
+    the first plate to it (2026-11-28), it settles in the fingers differently on the two
+    MuJoCos: 2.8 mm apart as it is lifted, 5.3 mm at most as it is set down, with the hand
+    within 4e-5 m and success at the same step (on the earlier, diagonal approach: 0.14 mm).
+    A fault in the second atom (the mug not grasped, dropped, carried elsewhere) moves it by
+    centimetres."""
     task = "libero_10/4"
     scene = LiberoMjx(LiberoMjxOptions(task=task), backend="c")
     actions, obs, success_step = expert_episode(scene)
@@ -81,7 +88,7 @@ def test_two_atom_episode_replays_on_libero() -> None:
         ref = libero.rollout(SEED % 50, actions)
     assert int(np.argmax(ref["success"])) == success_step and ref["success"][-1]
     second = float(np.abs(obs[:, 18:21] - ref["expert"][:, 10:13]).max())  # the second mug
-    assert second < 2e-3, second
+    assert second < 8e-3, second
 
 
 def test_coverage_names_what_the_expert_plays() -> None:

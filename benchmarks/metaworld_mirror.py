@@ -254,39 +254,51 @@ def mirror_inputs(scene, actions: jax.Array) -> tuple[jax.Array, jax.Array]:
     return jax.lax.scan(step, start, actions)[1]
 
 
+def raw_start(scene, seeds: jax.Array) -> tuple[Any, Any]:
+    """Each seed's reset physics as the evaluator resets it: (MJX data, per-env fields)."""
+    from openral_mjx.runner.episode import seed_keys
+
+    physics = jax.vmap(lambda s, k: scene.reset_with_seed(s, k).physics)
+    data_fields = jax.jit(lambda s, k: (lambda p: (p.data, p.fields))(physics(s, k)))
+    return data_fields(seeds, seed_keys(seeds)[0])
+
+
+def raw_control_step(scene, mx) -> Callable[[Any, tuple[jax.Array, jax.Array]], Any]:
+    """One control step of the bare loop on model `mx`: the mocap target and gripper control
+    `(pos, ctrl)` (from `mirror_inputs`) set as the scene sets them, then `FRAME_SKIP` plain
+    `mjx.step`s."""
+    from openral_mjx.physics.mjx_backend import mjx
+
+    mid = scene._mocap_id
+    quat = np.asarray(mw.MOCAP_QUAT) / np.linalg.norm(mw.MOCAP_QUAT)
+    q = jnp.asarray(quat, jnp.float32)
+
+    def step(d, inputs):
+        pos, c = inputs
+        d = d.replace(
+            ctrl=c,
+            mocap_pos=d.mocap_pos.at[mid].set(pos),
+            mocap_quat=d.mocap_quat.at[mid].set(q),
+        )
+        return jax.lax.fori_loop(0, mw.FRAME_SKIP, lambda _, x: mjx.step(mx, x), d)
+
+    return step
+
+
 def raw_ceiling(
     scene, actions: np.ndarray, max_steps: int
 ) -> tuple[float, float, float, Callable[[], Any]]:
     """(compile s, control steps/s, the same compiled as the runner compiles (`compiler_options`),
     a second run) of a bare `vmap(scan(mjx.step))` replaying the mocap targets and gripper
     controls of `actions` (n, T, 4) from the same reset states."""
-    from openral_mjx.physics.mjx_backend import mjx
-    from openral_mjx.runner.episode import seed_keys
-
     n = actions.shape[0]
-    seeds = jnp.arange(n)
-    data, fields = jax.jit(
-        jax.vmap(lambda s, k: (lambda p: (p.data, p.fields))(scene.reset_with_seed(s, k).physics))
-    )(seeds, seed_keys(seeds)[0])
+    data, fields = raw_start(scene, jnp.arange(n))
     mocap, ctrl = jax.jit(jax.vmap(lambda a: mirror_inputs(scene, a)))(jnp.asarray(actions))
-    mid = scene._mocap_id
-    quat = np.asarray(mw.MOCAP_QUAT) / np.linalg.norm(mw.MOCAP_QUAT)
-    q = jnp.asarray(quat, jnp.float32)
 
     def one(d, fields, mocap_seq, ctrl_seq):
-        mx = scene.backend.model(fields)  # this env's fixed bodies, as the evaluator has them
-
-        def control_step(d, inputs):
-            pos, c = inputs
-            d = d.replace(
-                ctrl=c,
-                mocap_pos=d.mocap_pos.at[mid].set(pos),
-                mocap_quat=d.mocap_quat.at[mid].set(q),
-            )
-            d = jax.lax.fori_loop(0, mw.FRAME_SKIP, lambda _, x: mjx.step(mx, x), d)
-            return d, None
-
-        return jax.lax.scan(control_step, d, (mocap_seq, ctrl_seq))[0].qpos
+        # this env's fixed bodies, as the evaluator has them
+        step = raw_control_step(scene, scene.backend.model(fields))
+        return jax.lax.scan(lambda d, x: (step(d, x), None), d, (mocap_seq, ctrl_seq))[0].qpos
 
     lowered = jax.jit(jax.vmap(one)).lower(data, fields, mocap, ctrl)
     t = time.perf_counter()

@@ -24,11 +24,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 from gpu_trace import kernel_summary
-from metaworld_mirror import mirror_inputs, mlp
+from metaworld_mirror import mirror_inputs, mlp, raw_control_step, raw_start
 
-from openral_mjx.benchmarks.metaworld.mirror import task as mw
 from openral_mjx.evaluation import build_scene
-from openral_mjx.physics.mjx_backend import mjx
 from openral_mjx.runner import run_seeds
 from openral_mjx.runner.device_layout import compiler_options
 from openral_mjx.runner.episode import make_episode_fn, seed_keys
@@ -67,13 +65,7 @@ def main() -> None:
         )
 
     reset_keys = seed_keys(seeds)[0]
-    physics = jax.jit(
-        jax.vmap(lambda s, k: (lambda p: (p.data, p.fields))(scene.reset_with_seed(s, k).physics))
-    )
-    data, fields = physics(seeds, reset_keys)
-    mocap_id = scene._mocap_id
-    quat = np.asarray(mw.MOCAP_QUAT) / np.linalg.norm(mw.MOCAP_QUAT)
-    quat = jnp.asarray(quat, jnp.float32)
+    data, fields = raw_start(scene, seeds)
 
     def scene_replay(seed, key, actions):
         def body(state, action):
@@ -83,20 +75,13 @@ def main() -> None:
         return jax.lax.scan(body, scene.traced.reset_with_seed(seed, key), actions)[1]
 
     def raw_replay(d, fields, actions):
-        mx = scene.backend.model(fields)
-        mocap, ctrl = mirror_inputs(scene, actions)
+        step = raw_control_step(scene, scene.backend.model(fields))
 
         def body(d, inputs):
-            pos, c = inputs
-            d = d.replace(
-                ctrl=c,
-                mocap_pos=d.mocap_pos.at[mocap_id].set(pos),
-                mocap_quat=d.mocap_quat.at[mocap_id].set(quat),
-            )
-            d = jax.lax.fori_loop(0, mw.FRAME_SKIP, lambda _, x: mjx.step(mx, x), d)
+            d = step(d, inputs)
             return d, jnp.max(d._impl.solver_niter)
 
-        return jax.lax.scan(body, d, (mocap, ctrl))[1]
+        return jax.lax.scan(body, d, mirror_inputs(scene, actions))[1]
 
     programs = {
         "scene step": (jax.jit(jax.vmap(scene_replay)), (seeds, reset_keys)),

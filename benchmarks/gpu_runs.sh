@@ -96,15 +96,15 @@ ts = s('metaworld_mjx', '${SUITE:-mt50}'); print(*sorted(ts, key=lambda t: not T
         done ) &
     done
     wait; cat "$d"/mjx_check_*.jsonl | wc -l ;;
-  mw-mjx-peak)  # issue 38: mjx on the GPU, PROCS task processes at once (each plans for 1/PROCS
-                # of the card, as a suite's task processes do): per task the batch that fits
+  mw-mjx-peak)  # issue 38: mjx on the GPU, PROCS task processes at once (each plans for
+                # 1/SHARE of the card, SHARE=PROCS by default, as a suite's task processes do): per task the batch that fits
                 # SEEDS (1000) envs' request, XLA's estimate, the allocator's peak, compile time
     tasks=(${TASKS:-$(mw_tasks)}); P=${PROCS:-10}
     export XLA_PYTHON_CLIENT_PREALLOCATE=false
     for i in $(seq 0 $((P - 1))); do
       ( for ((j = i; j < ${#tasks[@]}; j += P)); do
           timeout "${TASK_S:-540}" python3 benchmarks/metaworld_mirror.py mjx-peak --backend mjx \
-            --tasks "${tasks[j]}" --seeds ${SEEDS:-1000} --max-steps ${MAX_STEPS:-5} --share "$P" \
+            --tasks "${tasks[j]}" --seeds ${SEEDS:-1000} --max-steps ${MAX_STEPS:-5} --share "${SHARE:-$P}" \
             --out "$out/mjx_peak.jsonl" >> "$out/mjx_peak_$i.log" 2>&1 \
             || echo "${tasks[j]}: failed or cut ($?)" >> "$out/mjx_peak_$i.log"
         done ) &

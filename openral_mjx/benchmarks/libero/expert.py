@@ -34,8 +34,12 @@ What it knows of a task beyond the observation is fixed per task and computed he
 task's model (the mirror's export, `assets.load_task`) at LIBERO's initial state 0:
 
 - where to grasp, relative to the object's origin: the middle of the object's colliding
-  geoms where they fit between the fingers (7 cm), else a point of the rim on the fingers'
-  closing axis (bowls, baskets), 2 cm below the top;
+  geoms where they fit between the fingers (7 cm), 2 cm below the top; else a knob standing
+  over the rest (a moka pot's lid), the fingertips clear of the lid; else a handle reaching
+  out past the rest (a frying pan's), near the body, the hand turned a quarter where the
+  handle lies along the fingers' closing axis; else a point of the rim on the closing axis
+  (bowls, baskets), 2 cm below the top;
+- where objects put on one region stand: side by side across it, not on one point;
 - where the target is: the target body's origin (``On`` an object), or the region's site
   (``On`` a region, ``In`` a region) from the target body's pose, and the height to let go
   at: the object's bottom 2 cm above the target's top (its highest colliding geom, or the
@@ -58,6 +62,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+from collections.abc import Callable
 from typing import Any
 
 import jax
@@ -76,6 +81,13 @@ from openral_mjx.policies.base import Policy
 SCENES = ("libero", "libero_mjx")
 OSC_SCALE = 0.05  # metres per unit of position action (robosuite's OSC_POSE output_max)
 FINGER_GAP = 0.07  # widest object part grasped across its middle
+KNOB = 0.015  # m: a part standing this far above the rest of a wide object is grasped alone
+TIP = 0.013  # m: the fingertips' reach below the grip site (robosuite's Panda gripper)
+TIP_CLEAR = 0.003  # m: the fingertips' clearance over what a knob stands on
+SIDE_GAP = 0.01  # m: between objects put side by side on one region
+HANDLE_RATIO = 3.0  # a handle is at least this many times as long as it is wide
+HANDLE_OUT = 0.05  # m: and reaches at least this far beyond the rest of its object
+HANDLE_IN = 0.03  # m: grasped this far from its inner end
 ABOVE = 0.10  # approach height over the grasp point
 CROSSED = 0.02  # m: a hand crossing level to a grasp comes down once this near it
 CLEARANCE = 0.02  # the object's bottom over the target's top when let go
@@ -112,7 +124,8 @@ class Plan:
     axis: np.ndarray  # a joint atom: the joint's axis in the moving body's frame (atoms, 3)
     anchor: np.ndarray  # a hinge: its anchor in the moving body's frame
     slide: np.ndarray  # a joint atom: a slide (a drawer), else a hinge (atoms,)
-    yaw: np.ndarray  # a drawer: the hand's heading (world yaw, rad) to push it with
+    yaw: np.ndarray  # a drawer, a handle: the hand's heading (world yaw, rad) to play it with
+    turn: np.ndarray  # whether the hand turns to `yaw` first, else it holds its heading (atoms,)
     sign: np.ndarray  # a joint atom: +1 where the goal wants the joint above its threshold
     threshold: np.ndarray  # a joint atom: the goal's threshold on the joint's position
     press: np.ndarray  # a push's drive aims this far below the contact point (atoms,)
@@ -175,9 +188,12 @@ def plan_for(task: str) -> Plan | None:
     hand = d.xmat[m.body(export.meta["eef_body"]).id].reshape(3, 3)
     yaw = float(np.arctan2(hand[1, 0], hand[0, 0]))
     rows = [
-        _joint_plan(m, d, atom, yaw) if atom["kind"] == "joints" else _atom_plan(m, d, atom, axis)
+        _joint_plan(m, d, atom, yaw)
+        if atom["kind"] == "joints"
+        else _atom_plan(m, d, atom, axis, yaw)
         for atom in atoms
     ]
+    _side_by_side(atoms, rows, lambda body: d.xmat[m.body(body).id].reshape(3, 3))
     played = [r for r in rows if r["kind"] != SKIP]
     if not played:
         return None
@@ -194,6 +210,7 @@ def plan_for(task: str) -> Plan | None:
         anchor=vec("anchor"),
         slide=stack("slide", bool),
         yaw=stack("yaw"),
+        turn=stack("turn", bool),
         sign=stack("sign"),
         threshold=stack("threshold"),
         press=stack("press"),
@@ -202,18 +219,29 @@ def plan_for(task: str) -> Plan | None:
 
 
 def _atom_plan(
-    m: mujoco.MjModel, d: mujoco.MjData, atom: dict[str, Any], axis: np.ndarray
+    m: mujoco.MjModel, d: mujoco.MjData, atom: dict[str, Any], axis: np.ndarray, yaw: float
 ) -> dict[str, Any]:
-    """One pick-and-place atom's grasp point, target point and release height."""
+    """One pick-and-place atom's grasp point, target point and release height, and the
+    hand's heading for it (`yaw`, the heading at the initial state, unless it grasps a
+    handle that lies along the closing axis)."""
     obj = m.body(atom["obj"]).id
     target = m.body(atom.get("target") or atom["site_body"]).id
-    low, high = _colliding_box(m, d, obj)
+    boxes = _geom_boxes(m, d, obj)
+    low, high = np.min([b[0] for b in boxes], axis=0), np.max([b[1] for b in boxes], axis=0)
     origin = d.xpos[obj]
     width = float((high - low) @ axis)
     grasp = (low + high) / 2 - origin
-    if width > FINGER_GAP:  # the rim on the closing axis, 1 cm in from the edge
-        grasp = grasp + axis * (width / 2 - 0.01)
     grasp[2] = high[2] - origin[2] - min(0.02, (high[2] - low[2]) / 2)
+    knob = _knob(boxes, axis) if width > FINGER_GAP else None
+    handle = _handle(boxes) if width > FINGER_GAP and knob is None else None
+    turn = False
+    if knob is not None:  # a lid's knob, the fingertips clear of the lid
+        grasp = knob - origin
+    elif handle is not None:  # a pan's handle, the fingers closing across it
+        point, along = handle
+        grasp, turn = point - origin, bool(abs(along @ axis) > 0.5)
+    elif width > FINGER_GAP:  # the rim on the closing axis, 1 cm in from the edge
+        grasp = grasp + axis * (width / 2 - 0.01)
     bottom = origin[2] - low[2]  # the object's origin over its bottom
     if atom["kind"] == "on_object":
         site_pos = np.zeros(3)
@@ -230,7 +258,87 @@ def _atom_plan(
         "point": grasp,
         "site_pos": site_pos,
         "release_z": float(top + CLEARANCE + bottom),
+        "footprint": (high - low)[:2],
+        "yaw": _quarter_turn(yaw) if turn else yaw,
+        "turn": turn,
     }
+
+
+def _handle(boxes: list[tuple[np.ndarray, ...]]) -> tuple[np.ndarray, np.ndarray] | None:
+    """Where to grasp a handle, and the world axis it lies along, or None: a colliding part
+    at least `HANDLE_RATIO` times as long as it is wide, narrower than the fingers open, that
+    reaches `HANDLE_OUT` beyond the rest of the object; grasped `HANDLE_IN` from its inner
+    end (near the body, where the object's weight turns it least), 1.5 cm below its top.
+    LIBERO's frying pan is 20 cm across; its rim on the closing axis was the handle's end,
+    which the fingers closed along."""
+    best = None
+    for i, (low, high) in enumerate(boxes):
+        size = (high - low)[:2]
+        k = int(np.argmax(size))
+        if size[k] < HANDLE_RATIO * size[1 - k] or size[1 - k] > FINGER_GAP / 2:
+            continue
+        rest = [b for j, b in enumerate(boxes) if j != i]
+        if not rest:
+            continue
+        r_low = np.min([b[0] for b in rest], axis=0)
+        r_high = np.max([b[1] for b in rest], axis=0)
+        out, inner = (
+            (high[k] - r_high[k], low[k]) if high[k] > r_high[k] else (r_low[k] - low[k], high[k])
+        )
+        if out < HANDLE_OUT or (best is not None and out <= best[0]):
+            continue
+        point = (low + high) / 2
+        point[k] = inner + np.sign(point[k] - inner) * HANDLE_IN
+        point[2] = high[2] - min(0.015, (high[2] - low[2]) / 2)
+        best = (out, point, np.eye(3)[k])
+    return None if best is None else (best[1], best[2])
+
+
+def _side_by_side(
+    atoms: list[dict[str, Any]],
+    rows: list[dict[str, Any]],
+    frame: Callable[[str], np.ndarray],
+) -> None:
+    """Objects put `On` the same region stand side by side in it, `SIDE_GAP` apart along the
+    world axis they are narrower in, not on one point: `libero_10/8`'s second moka pot came
+    down on the first. (`In` a container the objects may land on each other, as LIBERO's
+    demonstrations drop them.) Moves those rows' `site_pos` (in the frame `frame(body)`, a
+    rotation matrix, gives the region's body) in place."""
+    groups: dict[tuple[Any, ...], list[int]] = {}
+    for i, (atom, row) in enumerate(zip(atoms, rows, strict=True)):
+        if row["kind"] == PICK and atom["kind"] == "on_site":
+            groups.setdefault((atom["site_body"], tuple(atom["site_pos"])), []).append(i)
+    for (body, _), members in groups.items():
+        if len(members) < 2:
+            continue
+        widths = np.array([rows[i]["footprint"] for i in members])
+        k = int(np.argmin(widths.max(axis=0)))
+        ends = np.cumsum(widths[:, k] + SIDE_GAP) - SIDE_GAP
+        centres = ends - widths[:, k] / 2 - ends[-1] / 2
+        rot = frame(body)
+        for i, c in zip(members, centres, strict=True):
+            rows[i]["site_pos"] = rows[i]["site_pos"] + rot.T @ (np.eye(3)[k] * c)
+
+
+def _knob(boxes: list[tuple[np.ndarray, ...]], axis: np.ndarray) -> np.ndarray | None:
+    """Where to grasp a part that stands at least `KNOB` above the rest of the object and
+    fits between the fingers (a moka pot's lid knob), or None: over its middle, the grip
+    site `TIP` + `TIP_CLEAR` above the rest, so the fingertips come down clear of it. The
+    moka pot is wider than the fingers open across both axes (8.2 cm), and its rim on the
+    closing axis is its spout or handle, which the fingers close on at an angle."""
+    top = max(hi[2] for _, hi in boxes)
+    parts = [b for b in boxes if b[1][2] >= top - 0.005]
+    rest = [b for b in boxes if b[1][2] < top - 0.005]
+    if not rest:
+        return None
+    rest_top = max(hi[2] for _, hi in rest)
+    low = np.min([b[0] for b in parts], axis=0)
+    high = np.max([b[1] for b in parts], axis=0)
+    if top - rest_top < KNOB or float((high - low) @ axis) > FINGER_GAP:
+        return None
+    point = (low + high) / 2
+    point[2] = rest_top + TIP + TIP_CLEAR
+    return point
 
 
 def _joint_plan(
@@ -302,6 +410,7 @@ def _joint_plan(
         "anchor": rot.T @ (anchor_w - origin),
         "slide": slide,
         "yaw": _quarter_turn(yaw),
+        "turn": slide,
         "sign": sign,
         "threshold": float(atom["threshold"][0]),
         "press": PRESS if closes(atom) and not slide else 0.0,
@@ -441,10 +550,10 @@ def act(plan: Plan, state: jax.Array, expert: jax.Array, pstate: dict) -> tuple[
     targets = jnp.where(kind == PICK, _pick_targets(plan, row, atom, eef, hold), joint_targets)
     target = jnp.where(kind == SKIP, eef, targets[phase])
     action = _toward(target, eef, jnp.asarray(GRIP)[kind, phase])
-    # a drawer's push turns the hand first (robosuite turns its goal by the action's
-    # axis-angle, 0.5 rad per unit, in world axes); other atoms hold the heading
+    # a drawer's push and a handle's pick turn the hand first (robosuite turns its goal by
+    # the action's axis-angle, 0.5 rad per unit, in world axes); other atoms hold the heading
     turn = _heading_error(state[3:6], jnp.asarray(plan.yaw)[atom])
-    turning = (kind == PUSH) & jnp.asarray(plan.slide)[atom] & (jnp.abs(turn) > TURNED)
+    turning = jnp.asarray(plan.turn)[atom] & (jnp.abs(turn) > TURNED)
     action = action.at[5].set(jnp.where(turning, jnp.clip(turn / 0.5, -1.0, 1.0), 0.0))
     error = jnp.linalg.norm(target - eef) + jnp.where(turning, 1.0, 0.0)
     reached = jnp.where(

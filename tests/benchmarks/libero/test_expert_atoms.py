@@ -112,6 +112,7 @@ def test_a_pick_s_approach_crosses_at_the_height_the_hand_starts_from() -> None:
         anchor=zero,
         slide=np.array([False]),
         yaw=np.zeros(1, np.float32),
+        turn=np.zeros(1, bool),
         sign=np.zeros(1, np.float32),
         threshold=np.zeros(1, np.float32),
         press=np.zeros(1, np.float32),
@@ -130,3 +131,91 @@ def test_a_pick_s_approach_crosses_at_the_height_the_hand_starts_from() -> None:
         eef = hold if at is None else at
         target = np.asarray(_pick_targets(plan, row, jnp.int32(0), eef, hold)[APPROACH])
         np.testing.assert_allclose(target, [*grasp[:2], want_z], atol=1e-6)
+
+
+def _box(low: list[float], high: list[float]) -> tuple[np.ndarray, np.ndarray]:
+    return np.array(low), np.array(high)
+
+
+# LIBERO's moka pot at its initial state, world-axis bounds relative to its origin (m): an
+# octagonal body 8.2 cm across x, the spout on +y, the handle on -y, and the lid's knob
+MOKA_POT = [
+    _box([-0.025, -0.035, -0.066], [0.025, 0.031, 0.067]),  # body
+    _box([-0.041, -0.03, -0.066], [-0.02, 0.005, 0.067]),  # body, a slanted side
+    _box([0.019, -0.003, -0.066], [0.04, 0.032, 0.067]),  # body, a slanted side
+    _box([-0.018, 0.03, 0.018], [0.018, 0.042, 0.067]),  # spout
+    _box([-0.007, -0.091, 0.039], [0.007, -0.06, 0.068]),  # handle, top
+    _box([-0.005, -0.005, 0.063], [0.005, 0.007, 0.086]),  # knob
+]
+
+
+def test_a_wide_object_with_a_knob_is_grasped_by_the_knob_with_the_fingertips_clear() -> None:
+    """The moka pot is wider than the open fingers across both axes; on the closing axis
+    (y) its rim is the spout, which the fingers closed on at an angle (`libero_10/2`: 0 of
+    10 seeds). Its knob stands 1.8 cm over the rest: the grip site goes over the knob's
+    middle, the fingertips `TIP_CLEAR` over the handle's top. A bowl, nothing standing
+    above its rim, has no knob."""
+    from openral_mjx.benchmarks.libero.expert import TIP, TIP_CLEAR, _knob
+
+    y = np.array([0.0, 1.0, 0.0])
+    point = _knob(MOKA_POT, y)
+    np.testing.assert_allclose(point, [0.0, 0.001, 0.068 + TIP + TIP_CLEAR], atol=1e-9)
+    bowl = [
+        _box([-0.07, -0.07, 0.0], [0.07, -0.06, 0.05]),
+        _box([-0.07, 0.06, 0.0], [0.07, 0.07, 0.05]),
+    ]
+    assert _knob(bowl, y) is None
+    wide_lid = [*MOKA_POT[:-1], _box([-0.05, -0.05, 0.063], [0.05, 0.05, 0.086])]
+    assert _knob(wide_lid, y) is None  # standing above the rest, but wider than the fingers
+
+
+def test_objects_put_on_one_region_stand_side_by_side_along_their_narrow_axis() -> None:
+    """Two moka pots put on one burner (`libero_10/8`) go `SIDE_GAP` apart along x, the axis
+    they are narrower in (8.1 cm against 14.8 with spout and handle), centred on the region;
+    the offset is in the region's body frame (here turned a quarter about z). Objects put
+    `In` one container keep the same point, and a lone atom is untouched."""
+    from openral_mjx.benchmarks.libero.expert import PICK, SIDE_GAP, _side_by_side
+
+    def row(footprint: list[float]) -> dict:
+        return {"kind": PICK, "site_pos": np.zeros(3), "footprint": np.array(footprint)}
+
+    on = {"kind": "on_site", "site_body": "burner", "site_pos": [0.0, 0.0, 0.0]}
+    into = {"kind": "in_site", "site_body": "basket", "site_pos": [0.0, 0.0, 0.07]}
+    quarter = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])  # body x = world y
+    atoms = [on, on, into, into, {**on, "site_body": "plate"}]
+    rows = [row([0.081, 0.148]), row([0.081, 0.148])] + [row([0.06, 0.06]) for _ in range(3)]
+    _side_by_side(atoms, rows, lambda body: quarter if body == "burner" else np.eye(3))
+    half = 0.081 / 2 + SIDE_GAP / 2
+    world = [quarter @ rows[i]["site_pos"] for i in (0, 1)]
+    np.testing.assert_allclose(world, [[-half, 0.0, 0.0], [half, 0.0, 0.0]], atol=1e-12)
+    for i in (2, 3, 4):
+        np.testing.assert_array_equal(rows[i]["site_pos"], np.zeros(3))
+
+
+def test_a_pan_is_grasped_by_its_handle_near_the_body_with_the_hand_turned_across_it() -> None:
+    """LIBERO's frying pan (20 cm across; boxes relative to its origin, at its initial state)
+    sticks its handle out 12 cm along y, the fingers' closing axis: its rim there was the
+    handle's end, which the fingers closed along (`libero_90/21`, `/45`: 0 of 10 seeds). The
+    grasp goes `HANDLE_IN` from the handle's inner end, 1.5 cm below its top, and the plan
+    turns the hand a quarter so the fingers close across it. A part that does not reach out
+    past the rest (a bowl's rim) is no handle."""
+    from openral_mjx.benchmarks.libero.expert import HANDLE_IN, _handle
+
+    pan = [
+        _box([-0.013, 0.126, 0.029], [0.013, 0.259, 0.059]),  # the handle
+        _box([-0.015, 0.118, 0.015], [0.007, 0.141, 0.04]),  # its joint to the wall
+        _box([-0.055, -0.055, 0.001], [0.055, 0.055, 0.013]),  # the bottom
+        _box([-0.101, -0.016, 0.002], [-0.073, 0.026, 0.042]),  # walls
+        _box([0.074, -0.02, 0.002], [0.103, 0.022, 0.042]),
+        _box([-0.022, 0.083, 0.002], [0.02, 0.111, 0.042]),
+        _box([-0.022, -0.097, 0.002], [0.021, -0.068, 0.042]),
+    ]
+    point, along = _handle(pan)
+    np.testing.assert_allclose(point, [0.0, 0.126 + HANDLE_IN, 0.059 - 0.015], atol=1e-9)
+    np.testing.assert_array_equal(along, [0.0, 1.0, 0.0])
+    rim = [
+        _box([-0.07, -0.07, 0.0], [0.07, -0.06, 0.05]),
+        _box([-0.07, 0.06, 0.0], [0.07, 0.07, 0.05]),
+    ]
+    assert _handle(rim) is None
+    assert _handle(pan[1:]) is None  # without the handle

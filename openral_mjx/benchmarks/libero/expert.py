@@ -88,6 +88,7 @@ SIDE_GAP = 0.01  # m: between objects put side by side on one region
 HANDLE_RATIO = 3.0  # a handle is at least this many times as long as it is wide
 HANDLE_OUT = 0.05  # m: and reaches at least this far beyond the rest of its object
 HANDLE_IN = 0.03  # m: grasped this far from its inner end
+PAD_UP = 0.004  # m: the finger pads' middle over the grip site (robosuite's Panda gripper)
 ABOVE = 0.10  # approach height over the grasp point
 CROSSED = 0.02  # m: a hand crossing level to a grasp comes down once this near it
 CLEARANCE = 0.02  # the object's bottom over the target's top when let go
@@ -136,14 +137,21 @@ class Plan:
         return len(self.kind)
 
 
+def _colliding_geoms(m: mujoco.MjModel, body: int) -> list[int]:
+    """The colliding geoms in `body`'s subtree, in the model's order."""
+    return [
+        g
+        for g in range(m.ngeom)
+        if (m.geom_contype[g] or m.geom_conaffinity[g])
+        and in_subtree(m, int(m.geom_bodyid[g]), body)
+    ]
+
+
 def _geom_boxes(m: mujoco.MjModel, d: mujoco.MjData, body: int) -> list[tuple[np.ndarray, ...]]:
-    """World-axis bounds (low, high) of each colliding geom in `body`'s subtree."""
+    """World-axis bounds (low, high) of each colliding geom in `body`'s subtree, in the order
+    of `_colliding_geoms`."""
     boxes = []
-    for g in range(m.ngeom):
-        if not (m.geom_contype[g] or m.geom_conaffinity[g]):
-            continue
-        if not in_subtree(m, int(m.geom_bodyid[g]), body):
-            continue
+    for g in _colliding_geoms(m, body):
         center, half = m.geom_aabb[g, :3], m.geom_aabb[g, 3:]
         corners = center + half * np.array(np.meshgrid(*[[-1, 1]] * 3)).reshape(3, -1).T
         world = d.geom_xpos[g] + corners @ d.geom_xmat[g].reshape(3, 3).T
@@ -238,7 +246,8 @@ def _atom_plan(
     if knob is not None:  # a lid's knob, the fingertips clear of the lid
         grasp = knob - origin
     elif handle is not None:  # a pan's handle, the fingers closing across it
-        point, along = handle
+        point, along, i = handle
+        point[2] = _bar_height(m, d, _colliding_geoms(m, obj)[i], point) - PAD_UP
         grasp, turn = point - origin, bool(abs(along @ axis) > 0.5)
     elif width > FINGER_GAP:  # the rim on the closing axis, 1 cm in from the edge
         grasp = grasp + axis * (width / 2 - 0.01)
@@ -264,8 +273,9 @@ def _atom_plan(
     }
 
 
-def _handle(boxes: list[tuple[np.ndarray, ...]]) -> tuple[np.ndarray, np.ndarray] | None:
-    """Where to grasp a handle, and the world axis it lies along, or None: a colliding part
+def _handle(boxes: list[tuple[np.ndarray, ...]]) -> tuple[np.ndarray, np.ndarray, int] | None:
+    """Where to grasp a handle, the world axis it lies along and its index in `boxes`, or
+    None: a colliding part
     at least `HANDLE_RATIO` times as long as it is wide, narrower than the fingers open, that
     reaches `HANDLE_OUT` beyond the rest of the object; grasped `HANDLE_IN` from its inner
     end (near the body, where the object's weight turns it least), 1.5 cm below its top.
@@ -290,8 +300,19 @@ def _handle(boxes: list[tuple[np.ndarray, ...]]) -> tuple[np.ndarray, np.ndarray
         point = (low + high) / 2
         point[k] = inner + np.sign(point[k] - inner) * HANDLE_IN
         point[2] = high[2] - min(0.015, (high[2] - low[2]) / 2)
-        best = (out, point, np.eye(3)[k])
-    return None if best is None else (best[1], best[2])
+        best = (out, point, np.eye(3)[k], i)
+    return None if best is None else best[1:]
+
+
+def _bar_height(m: mujoco.MjModel, d: mujoco.MjData, geom: int, point: np.ndarray) -> float:
+    """The height of box `geom`'s long axis over `point`'s horizontal position. A sloping
+    bar's world-axis bounds are taller than the bar: the pan's handle is 1.2 cm thick and
+    rises 1.7 cm along its 13 cm, and grasped at its bounds' middle, 5 mm over the bar, it
+    slipped from the fingers (`libero_90/18`: 4 of 10 seeds)."""
+    rot, centre = d.geom_xmat[geom].reshape(3, 3), d.geom_xpos[geom]
+    u = rot[:, int(np.argmax(m.geom_size[geom]))]
+    t = float((point - centre)[:2] @ u[:2]) / max(float(u[:2] @ u[:2]), 1e-12)
+    return float(centre[2] + t * u[2])
 
 
 def _side_by_side(

@@ -210,9 +210,10 @@ def test_a_pan_is_grasped_by_its_handle_near_the_body_with_the_hand_turned_acros
         _box([-0.022, 0.083, 0.002], [0.02, 0.111, 0.042]),
         _box([-0.022, -0.097, 0.002], [0.021, -0.068, 0.042]),
     ]
-    point, along = _handle(pan)
+    point, along, index = _handle(pan)
     np.testing.assert_allclose(point, [0.0, 0.126 + HANDLE_IN, 0.059 - 0.015], atol=1e-9)
     np.testing.assert_array_equal(along, [0.0, 1.0, 0.0])
+    assert index == 0
     rim = [
         _box([-0.07, -0.07, 0.0], [0.07, -0.06, 0.05]),
         _box([-0.07, 0.06, 0.0], [0.07, 0.07, 0.05]),

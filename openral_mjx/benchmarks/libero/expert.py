@@ -55,7 +55,8 @@ gripper, lift (a joint atom: drive along the path), carry over the target, lower
 retreat; after the retreat, the next atom's approach. A grasp whose fingers close on nothing
 (under `EMPTY` apart while lifting, carrying or lowering) starts the atom over from its
 approach. Position targets become OSC deltas (``(target - eef) / 0.05``, clipped to
-[-1, 1]: robosuite scales a unit action to 5 cm); the orientation is held (zero rotation).
+[-1, 1]: robosuite scales a unit action to 5 cm); the orientation is held (zero rotation),
+except in a drawer's push and a handle's pick, which first turn the hand to their heading.
 """
 
 from __future__ import annotations
@@ -275,12 +276,12 @@ def _atom_plan(
 
 def _handle(boxes: list[tuple[np.ndarray, ...]]) -> tuple[np.ndarray, np.ndarray, int] | None:
     """Where to grasp a handle, the world axis it lies along and its index in `boxes`, or
-    None: a colliding part
-    at least `HANDLE_RATIO` times as long as it is wide, narrower than the fingers open, that
-    reaches `HANDLE_OUT` beyond the rest of the object; grasped `HANDLE_IN` from its inner
-    end (near the body, where the object's weight turns it least), 1.5 cm below its top.
-    LIBERO's frying pan is 20 cm across; its rim on the closing axis was the handle's end,
-    which the fingers closed along."""
+    None. A handle is a colliding part at least `HANDLE_RATIO` times as long as it is wide,
+    narrower than the fingers open, that reaches `HANDLE_OUT` beyond the rest of the
+    object. It is grasped `HANDLE_IN` from its inner end (near the body, where the object's
+    weight turns it least), 1.5 cm below its top (`_atom_plan` then puts the grasp on the
+    bar's axis). LIBERO's frying pan is 20 cm across; its rim on the closing axis was the
+    handle's end, which the fingers closed along."""
     best = None
     for i, (low, high) in enumerate(boxes):
         size = (high - low)[:2]
@@ -323,8 +324,8 @@ def _side_by_side(
     """Objects put `On` the same region stand side by side in it, `SIDE_GAP` apart along the
     world axis they are narrower in, not on one point: `libero_10/8`'s second moka pot came
     down on the first. (`In` a container the objects may land on each other, as LIBERO's
-    demonstrations drop them.) Moves those rows' `site_pos` (in the frame `frame(body)`, a
-    rotation matrix, gives the region's body) in place."""
+    demonstrations drop them.) Moves those rows' `site_pos` in place; `frame(body)` is the
+    rotation matrix of the region's body, whose frame `site_pos` is in."""
     groups: dict[tuple[Any, ...], list[int]] = {}
     for i, (atom, row) in enumerate(zip(atoms, rows, strict=True)):
         if row["kind"] == PICK and atom["kind"] == "on_site":

@@ -97,8 +97,9 @@ ts = s('metaworld_mjx', '${SUITE:-mt50}'); print(*sorted(ts, key=lambda t: not T
     done
     wait; cat "$d"/mjx_check_*.jsonl | wc -l ;;
   mw-mjx-peak)  # issue 38: mjx on the GPU, PROCS task processes at once (each plans for
-                # 1/SHARE of the card, SHARE=PROCS by default, as a suite's task processes do): per task the batch that fits
-                # SEEDS (1000) envs' request, XLA's estimate, the allocator's peak, compile time
+                # 1/SHARE of the card, SHARE=PROCS by default, as a suite's task processes
+                # do): per task the batch that fits SEEDS (1000) envs' request, XLA's
+                # estimate, the allocator's peak, compile time
     tasks=(${TASKS:-$(mw_tasks)}); P=${PROCS:-10}
     export XLA_PYTHON_CLIENT_PREALLOCATE=false
     for i in $(seq 0 $((P - 1))); do

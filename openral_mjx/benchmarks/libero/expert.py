@@ -162,10 +162,14 @@ def _geom_boxes(m: mujoco.MjModel, d: mujoco.MjData, body: int) -> list[tuple[np
     return boxes
 
 
+def _bounds(boxes: list[tuple[np.ndarray, ...]]) -> tuple[np.ndarray, np.ndarray]:
+    """World-axis bounds (low, high) around `boxes`."""
+    return np.min([b[0] for b in boxes], axis=0), np.max([b[1] for b in boxes], axis=0)
+
+
 def _colliding_box(m: mujoco.MjModel, d: mujoco.MjData, body: int) -> tuple[np.ndarray, ...]:
     """World-axis bounds (low, high) of the colliding geoms in `body`'s subtree."""
-    boxes = _geom_boxes(m, d, body)
-    return np.min([b[0] for b in boxes], axis=0), np.max([b[1] for b in boxes], axis=0)
+    return _bounds(_geom_boxes(m, d, body))
 
 
 def _quarter_turn(yaw: float) -> float:
@@ -236,7 +240,7 @@ def _atom_plan(
     obj = m.body(atom["obj"]).id
     target = m.body(atom.get("target") or atom["site_body"]).id
     boxes = _geom_boxes(m, d, obj)
-    low, high = np.min([b[0] for b in boxes], axis=0), np.max([b[1] for b in boxes], axis=0)
+    low, high = _bounds(boxes)
     origin = d.xpos[obj]
     width = float((high - low) @ axis)
     grasp = (low + high) / 2 - origin
@@ -291,8 +295,7 @@ def _handle(boxes: list[tuple[np.ndarray, ...]]) -> tuple[np.ndarray, np.ndarray
         rest = [b for j, b in enumerate(boxes) if j != i]
         if not rest:
             continue
-        r_low = np.min([b[0] for b in rest], axis=0)
-        r_high = np.max([b[1] for b in rest], axis=0)
+        r_low, r_high = _bounds(rest)
         out, inner = (
             (high[k] - r_high[k], low[k]) if high[k] > r_high[k] else (r_low[k] - low[k], high[k])
         )
@@ -349,13 +352,13 @@ def _knob(boxes: list[tuple[np.ndarray, ...]], axis: np.ndarray) -> np.ndarray |
     moka pot is wider than the fingers open across both axes (8.2 cm), and its rim on the
     closing axis is its spout or handle, which the fingers close on at an angle."""
     top = max(hi[2] for _, hi in boxes)
-    parts = [b for b in boxes if b[1][2] >= top - 0.005]
-    rest = [b for b in boxes if b[1][2] < top - 0.005]
+    at_top = [b[1][2] >= top - 0.005 for b in boxes]
+    parts = [b for b, up in zip(boxes, at_top, strict=True) if up]
+    rest = [b for b, up in zip(boxes, at_top, strict=True) if not up]
     if not rest:
         return None
     rest_top = max(hi[2] for _, hi in rest)
-    low = np.min([b[0] for b in parts], axis=0)
-    high = np.max([b[1] for b in parts], axis=0)
+    low, high = _bounds(parts)
     if top - rest_top < KNOB or float((high - low) @ axis) > FINGER_GAP:
         return None
     point = (low + high) / 2

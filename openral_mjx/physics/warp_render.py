@@ -31,7 +31,6 @@ import jax
 import jax.numpy as jnp
 import mujoco
 import numpy as np
-from scipy import ndimage
 
 from openral_mjx.core.errors import ConfigError, unknown
 from openral_mjx.core.rotations import quat_to_mat
@@ -100,13 +99,21 @@ def srgb_to_linear(texels: np.ndarray) -> np.ndarray:
     return np.round(lin * 255.0).astype(np.uint8)
 
 
-def box_filtered(texels: np.ndarray, side: int, wrap: bool) -> np.ndarray:
-    """`texels` (H, W, C) uint8 averaged over `side` x `side` boxes, same size: the texel a
-    mipmap level of that footprint would give there. `wrap`: a repeating texture's edges meet
-    its opposite edges; else they extend."""
-    mode = "wrap" if wrap else "nearest"
-    mean = ndimage.uniform_filter(texels.astype(np.float32), size=(side, side, 1), mode=mode)
-    return np.clip(np.round(mean), 0, 255).astype(np.uint8)
+def area_resampled(texels: np.ndarray, height: int, width: int) -> np.ndarray:
+    """`texels` (H, W, C) uint8 resampled to (`height`, `width`, C): each new texel the mean
+    of the old ones its area covers, weighted by how much of each it covers (a mipmap
+    level's box filter, at any ratio)."""
+
+    def weights(n_in: int, n_out: int) -> np.ndarray:  # (n_out, n_in), rows summing to 1
+        edges = np.arange(n_out + 1) * (n_in / n_out)
+        cells = np.arange(n_in)[None, :]
+        cover = np.minimum(edges[1:, None], cells + 1) - np.maximum(edges[:-1, None], cells)
+        return (np.clip(cover, 0.0, None) * (n_out / n_in)).astype(np.float32)
+
+    h, w, c = texels.shape
+    rows = weights(h, height) @ texels.reshape(h, w * c).astype(np.float32)
+    out = np.einsum("jw,iwc->ijc", weights(w, width), rows.reshape(height, w, c))
+    return np.clip(np.round(out), 0, 255).astype(np.uint8)
 
 
 def render_model(model: mujoco.MjModel, texels: int = 0) -> mujoco.MjModel:
@@ -117,10 +124,14 @@ def render_model(model: mujoco.MjModel, texels: int = 0) -> mujoco.MjModel:
       decodes those when it samples them (OpenGL's sRGB texture formats) and writes the result
       unencoded; MuJoCo-Warp reads every texel as stored, which drew LIBERO's sRGB floor
       ~30/255 brighter.
-    - `texels` > 0: each texture wider than that is averaged over boxes of side width /
-      `texels` (`box_filtered`; a cube texture face by face), in linear values, as a mipmap
-      level is. MuJoCo's renderer samples a minified texture from its mipmaps; MuJoCo-Warp
-      samples the full one, so a wood grain seen from afar aliases into noise.
+    - `texels` > 0: each texture wider than that is replaced by its mipmap level `texels`
+      wide (`area_resampled` in linear values; a cube or skybox texture face by face).
+      MuJoCo's renderer samples a minified texture from its mipmaps; MuJoCo-Warp samples the
+      one level it is given, so a wood grain seen from afar aliases into noise at full size.
+      The level is also what the renderer uploads: LIBERO's 4,096-texel basket took 268 MB
+      of GPU memory per process as full-size float RGBA, and its conversion seconds of start-up.
+      Only the copy's `tex_width`/`tex_height` shrink (the level sits at the texture's old
+      address), so it is for the renderer, never to be compiled or saved.
     """
     srgb = model.tex_colorspace == int(mujoco.mjtColorSpace.mjCOLORSPACE_SRGB)
     wide = (model.tex_width > texels) if texels > 0 else np.zeros(model.ntex, bool)
@@ -128,23 +139,25 @@ def render_model(model: mujoco.MjModel, texels: int = 0) -> mujoco.MjModel:
     if not changed:
         return model
     out = copy.copy(model)  # the arrays too: the physics' model keeps its textures
-    cube = int(mujoco.mjtTexture.mjTEXTURE_CUBE)
+    faced = {int(mujoco.mjtTexture.mjTEXTURE_CUBE), int(mujoco.mjtTexture.mjTEXTURE_SKYBOX)}
     for t in map(int, changed):
         a, nch = int(out.tex_adr[t]), int(out.tex_nchannel[t])
         w, h = int(out.tex_width[t]), int(out.tex_height[t])
-        image = out.tex_data[a : a + w * h * nch].reshape(h, w, nch)
+        image = out.tex_data[a : a + w * h * nch].reshape(h, w, nch).copy()
         rgb = min(3, nch)  # alpha stays linear
         if srgb[t]:
             image[..., :rgb] = srgb_to_linear(image[..., :rgb])
             out.tex_colorspace[t] = int(mujoco.mjtColorSpace.mjCOLORSPACE_LINEAR)
         if wide[t]:
-            side = max(1, round(w / texels))
-            faces = h // w if int(out.tex_type[t]) == cube and h % w == 0 else 1
-            rows = h // faces
-            for f in range(faces):  # a cube's faces do not wrap into each other
-                face = image[f * rows : (f + 1) * rows]
-                face[..., :rgb] = box_filtered(face[..., :rgb], side, wrap=faces == 1)
-        out.tex_data[a : a + w * h * nch] = image.reshape(-1)
+            faces = h // w if int(out.tex_type[t]) in faced and h % w == 0 else 1
+            rows = h // faces  # a cube's faces are stacked and must not blend into each other
+            w2 = texels
+            h2 = max(1, round(rows * texels / w))
+            image = np.concatenate(
+                [area_resampled(image[f * rows : (f + 1) * rows], h2, w2) for f in range(faces)]
+            )
+            out.tex_width[t], out.tex_height[t] = image.shape[1], image.shape[0]
+        out.tex_data[a : a + image.size] = image.reshape(-1)
     return out
 
 
@@ -334,13 +347,16 @@ class WarpCameras:
             for c in self.cameras
         }
         self._contexts: dict[int, Any] = {}
+        self._drawn: mujoco.MjModel | None = None  # `render_model`'s copy, once built
         self.render = self._make_render()
 
     def context(self, nworld: int) -> Any:
         """The render context for batches of `nworld` (built on first use)."""
         if nworld not in self._contexts:
+            if self._drawn is None:  # one per process: the textures' levels take seconds
+                self._drawn = render_model(self.mj_model, self.style.texels)
             self._contexts[nworld] = mjx.create_render_context(
-                render_model(self.mj_model, self.style.texels),
+                self._drawn,
                 nworld=nworld,
                 devices=self.devices,
                 cam_active=[c.cam_id for c in self.cameras],

@@ -19,6 +19,7 @@ from openral_mjx.core.errors import ConfigError
 from openral_mjx.physics import PhysicsSettings, warp_render
 from openral_mjx.physics.warp_render import (
     _subtree_com,
+    area_resampled,
     gl_material_terms,
     light_poses,
     render_model,
@@ -341,14 +342,20 @@ _CHECKERS = """
 """
 
 
-def test_prefilter_averages_each_texture_as_a_mipmap_level_would():
-    """`texels`: a texture wider than that is averaged over boxes of side width / texels, as
-    the mipmap level MuJoCo's renderer would sample it from. MuJoCo's checker builtin is 2 x 2
-    squares of half the texture's side. At 1 texel a box spans the whole texture, a full
-    period (wrapping at the edges), so a 2-D texture turns flat at its mean, and a cube's
-    faces, each filtered alone with its edges extended, lose most of their contrast. At 16,
-    boxes of 4 on the 64-wide board blur 2 texels either side of a square's edge and leave
-    the rest; a texture no wider than `texels`, and the physics' model, keep their texels."""
+def test_area_resampling_weights_each_texel_by_the_area_it_covers():
+    """Three texels 0, 30, 60 in two: each new texel covers one and a half old ones, so
+    (0 + 30 / 2) / 1.5 = 10 and (30 / 2 + 60) / 1.5 = 50; along the other axis, kept."""
+    ramp = np.array([0, 30, 60], np.uint8).reshape(1, 3, 1).repeat(2, axis=0)
+    np.testing.assert_array_equal(area_resampled(ramp, 2, 2)[..., 0], [[10, 50], [10, 50]])
+
+
+def test_prefilter_replaces_each_wide_texture_by_its_mipmap_level():
+    """`texels`: a texture wider than that is replaced by the mipmap level that wide, which
+    MuJoCo's renderer would sample it from (a cube's faces each alone). MuJoCo's checker
+    builtin is 2 x 2 squares of half the texture's side. At 1 texel a texture is one texel
+    of its mean, a cube one per face; at 16 the 64-wide board's 32-texel squares are 8 wide;
+    at 25 a level texel straddles the squares' edge and mixes them; a texture no wider than
+    `texels`, and the physics' model, keep their texels."""
     model = mujoco.MjModel.from_xml_string(_CHECKERS)
 
     def image(m, name):
@@ -356,25 +363,23 @@ def test_prefilter_averages_each_texture_as_a_mipmap_level_would():
         w, h, c = m.tex_width[t], m.tex_height[t], m.tex_nchannel[t]
         return m.tex_data[m.tex_adr[t] : m.tex_adr[t] + w * h * c].reshape(h, w, c).astype(float)
 
-    board = image(model, "board")
+    board, cube = image(model, "board"), image(model, "cube")
     assert set(np.unique(board)) == {0.0, 255.0}  # a checker of white and black
     flat = render_model(model, texels=1)
+    assert image(flat, "board").shape == (1, 1, 3)
     assert np.abs(image(flat, "board") - 127.5).max() <= 0.5
-    cube, faces = image(model, "cube"), image(flat, "cube")
     w = cube.shape[1]
-    for f in range(cube.shape[0] // w):  # each face alone, its edges extended (no wrap)
-        face = slice(f * w, (f + 1) * w)
-        assert faces[face].std() < cube[face].std() / 2
-        assert abs(faces[face].mean() - cube[face].mean()) < 16
-    blurred = image(render_model(model, texels=16), "board")
-    assert abs(blurred.mean() - board.mean()) <= 0.5  # a box filter keeps the mean
-    inner = np.r_[2:30, 34:62]  # rows and columns 2 or more from every square's edge
-    np.testing.assert_array_equal(blurred[np.ix_(inner, inner)], board[np.ix_(inner, inner)])
-    assert 0 < blurred[10, 31, 0] < 255 and 0 < blurred[31, 10, 0] < 255  # at an edge: mixed
+    faces = [cube[f * w : (f + 1) * w].mean(axis=(0, 1)) for f in range(cube.shape[0] // w)]
+    np.testing.assert_allclose(image(flat, "cube")[:, 0], faces, atol=0.5)
+    level = image(render_model(model, texels=16), "board")
+    np.testing.assert_array_equal(level, board[::4, ::4])  # 4 x 4 blocks inside one square
+    mixed = image(render_model(model, texels=25), "board")
+    assert mixed.shape == (25, 25, 3) and abs(mixed.mean() - board.mean()) <= 1.0
+    assert abs(mixed[12, 0, 0] - 127.5) <= 0.5 and mixed[0, 0, 0] in (0, 255)  # the edge: 12.5
     assert np.abs(image(flat, "small") - 127.5).max() <= 0.5  # 8 wide: filtered at 1
     np.testing.assert_array_equal(
-        image(render_model(model, texels=8), "small")[..., 0] > 0, image(model, "small")[..., 0] > 0
-    )  # at 8: as it was
+        image(render_model(model, texels=8), "small"), image(model, "small")
+    )
     assert render_model(model, texels=64) is model  # nothing wider, nothing sRGB
     np.testing.assert_array_equal(image(model, "board"), board)  # the physics' model as it was
 

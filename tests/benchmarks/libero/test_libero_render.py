@@ -24,11 +24,13 @@ SIZE = 32
 # LIBERO's hidden sites drawn, about 44% mirrored left-right, at 128).
 MIN_WITHIN = 0.97
 MIN_SSIM = 0.9
-# warp against c, libero_object/0's initial states 0 and 1 at 32 x 32: measured 47.9%
-# (image) and 60.0% (wrist) of pixels within 8/255, SSIM 0.62 and 0.61; the same images
-# flipped left-right 24.5% and 32.6%, SSIM 0.21 and 0.36. Without the textures averaged down
-# to 16 texels (`libero_style`, standing in for MuJoCo's mipmaps) 36.3% and 53.8%, SSIM 0.50
-# and 0.56; with the sRGB floor undecoded as well about 13% and 20% (against LIBERO's).
+# warp against c, libero_object/0's initial states 0 and 1 at 32 x 32: measured 47.4%
+# (image) and 55.4% (wrist) of pixels within 8/255, SSIM 0.61 and 0.56; the same images
+# flipped left-right 25.3% and 33.7%, SSIM 0.19 and 0.32 (2026-11-29, textures as their
+# 16-texel mipmap levels; 47.9% and 60.0% with the full-size textures box-filtered to the
+# same footprint). Without either (`libero_style`, standing in for MuJoCo's mipmaps) 36.3%
+# and 53.8%, SSIM 0.50 and 0.56; with the sRGB floor undecoded as well about 13% and 20%
+# (against LIBERO's).
 # Untextured, the two agree on 91% at 64 x 64.
 WARP_MIN_WITHIN = {"image": 0.4, "wrist_image": 0.5}
 WARP_MIN_SSIM = 0.5

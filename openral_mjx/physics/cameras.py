@@ -20,10 +20,11 @@ class RgbStyle:
             as in MuJoCo's renderer. Costs a ray per such light and pixel.
         samples: sub-pixel samples per axis, averaged (anti-aliasing, as MuJoCo's multisampled
             offscreen buffer smooths edges); costs `samples`**2 renders.
-        texels: on `warp`, each texture is averaged over boxes of side width / `texels` before
-            it is drawn, standing in for the mipmaps MuJoCo's renderer samples a minified
-            texture from (MuJoCo-Warp samples the full texture, so fine patterns alias into
-            noise); 0 draws the textures as they are. Costs nothing per frame.
+        texels: on `warp`, each texture wider than `texels` is drawn from its mipmap level
+            that wide, standing in for the mipmaps MuJoCo's renderer samples a minified
+            texture from (MuJoCo-Warp samples the one level it is given: at full size fine
+            patterns alias into noise); 0 draws the textures as they are. Costs nothing per
+            frame, and the smaller textures take less device memory.
     """
 
     textures: bool = False

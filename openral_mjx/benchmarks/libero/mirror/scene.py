@@ -91,11 +91,11 @@ CAMERAS = {"image": "agentview", "wrist_image": "robot0_eye_in_hand"}
 # but hides geom group 0, the collision geoms (`render_collision_mesh` off); 1 is the visual.
 LIBERO_STYLE = RgbStyle(textures=True, shadows=True)
 LIBERO_GROUPS = (1, 2)
-# On `warp`, textures are averaged down to half the image's width in texels (`RgbStyle.texels`)
-# in place of MuJoCo's mipmaps. Measured at 128 x 128 against LIBERO's images (docs/libero_mjx.md,
-# "Cameras on warp"): of 32, 64, 128 and 256 texels, 64 agreed best on `agentview` (+1 to +8
-# points of pixels within 8/255); the close-up wrist camera gains on table scenes and loses 2
-# points on libero_object/0.
+# On `warp`, textures are drawn from their mipmap level half the image's width in texels
+# (`RgbStyle.texels`), in place of MuJoCo's per-pixel mipmaps. Measured at 128 x 128 against
+# LIBERO's images (docs/libero_mjx.md, "Cameras on warp"): of 32, 64, 128 and 256 texels, 64
+# agreed best on `agentview`; the close-up wrist camera prefers finer levels (libero_object/0:
+# 68.9% at 64, 77.6% at 256, with 2 x 2 samples), and one level serves both cameras.
 TEXELS_PER_PIXEL = 0.5
 
 

@@ -20,8 +20,10 @@ Not played (the atom is skipped; `coverage` says which tasks the expert plays in
 opening a drawer (hooking or grasping its handle: from above the palm, 21 cm across the
 fingers' closing axis, stops on the cabinet; turned, the closed fingers do not fit the 2 cm
 between handle and front), shutting any drawer but a cabinet's top one (the palm meets the
-cabinet above it), and opening a hinged door (the microwave: its handle needs a grasp the
-downward hand cannot make).
+cabinet above it), opening a hinged door (the microwave: its handle needs a grasp the
+downward hand cannot make), and placing into a region with a part of its target over it
+(inside the microwave, on or under a cabinet's shelf: reached from the side, where the
+straight-down placing lands the object on top).
 
 It reads the observation's ``state`` (lerobot's 8 floats: end-effector position first) and
 ``expert`` entry (`export.expert_entry`: per atom the object's position and the target body's
@@ -110,6 +112,7 @@ TURNED = 0.05  # rad: the hand's heading counts as reached within this
 STROKE = 25  # control steps a push's drive gets; if the joint is not past by then, the hand
 # goes up and comes down behind the part again (a long push wedges the fingers on a knob)
 WIDE_HINGE = 0.1  # a hinge whose contact point lies farther from its axis is a door
+ROOF = 0.05  # m: a part of the target this far over a region's site makes it reached from the side
 
 
 @dataclasses.dataclass(frozen=True)
@@ -267,6 +270,9 @@ def _atom_plan(
         top = float(np.abs(rot @ np.asarray(atom["size"]))[2])
         if atom["kind"] == "on_site":
             top = float(atom["size"][2])
+        site = d.xpos[target] + d.xmat[target].reshape(3, 3) @ site_pos
+        if _roofed(_geom_boxes(m, d, target), site):
+            return {"kind": SKIP}
     return {
         "kind": PICK,
         "point": grasp,
@@ -276,6 +282,18 @@ def _atom_plan(
         "yaw": _quarter_turn(yaw) if turn else yaw,
         "turn": turn,
     }
+
+
+def _roofed(boxes: list[tuple[np.ndarray, ...]], point: np.ndarray) -> bool:
+    """Whether one of a target's parts (`boxes`, world-axis bounds) lies `ROOF` or more over
+    `point` (world): a region reached from the side, which the expert's straight-down
+    placing cannot enter. A mug let down over the microwave's inside lands on its top
+    (`libero_10/9`); a pan or a book over a cabinet's shelf, on the cabinet (`libero_90` 40,
+    42, 86, 88, 89). A burner or a plate's rim just over its region's site is no roof."""
+    return any(
+        low[2] > point[2] + ROOF and np.all(low[:2] <= point[:2]) and np.all(point[:2] <= high[:2])
+        for low, high in boxes
+    )
 
 
 def _handle(boxes: list[tuple[np.ndarray, ...]]) -> tuple[np.ndarray, np.ndarray, int] | None:
@@ -623,8 +641,9 @@ def libero_expert(scene: Any, arg: str | None) -> Policy:
     plan = plan_for(scene.task)
     if plan is None:
         raise ConfigError(
-            f"policy 'libero-expert' plays no atom of task {scene.task!r}'s goal (drawers and "
-            "opening a hinged door are not scripted)"
+            f"policy 'libero-expert' plays no atom of task {scene.task!r}'s goal (drawers, "
+            "opening a hinged door and placing into a region reached from the side are not "
+            "scripted)"
         )
     if name == "libero_mjx" and scene.obs_layout:  # a flat vector (no cameras)
         (s0, sn), (e0, en) = scene.obs_layout["state"], scene.obs_layout["expert"]

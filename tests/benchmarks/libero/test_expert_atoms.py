@@ -220,3 +220,31 @@ def test_a_pan_is_grasped_by_its_handle_near_the_body_with_the_hand_turned_acros
     ]
     assert _handle(rim) is None
     assert _handle(pan[1:]) is None  # without the handle
+
+
+def test_a_region_with_a_part_of_its_target_over_it_is_not_placed_into() -> None:
+    """LIBERO's microwave (`libero_10/9`, world bounds at initial state 0): its inside, the
+    region the mug goes `In`, lies under the microwave's top, 7.2 cm over the region's site;
+    let down straight, the mug landed on the top (0 of 10 seeds). A basket's walls and a
+    burner 1 cm over its site are no roof, nor is a top that does not reach over the site."""
+    from openral_mjx.benchmarks.libero.expert import _roofed
+
+    microwave = [
+        _box([-0.166, 0.268, 0.92], [-0.137, 0.467, 1.107]),  # the left wall
+        _box([0.07, 0.268, 0.92], [0.179, 0.467, 1.107]),  # the control panel
+        _box([-0.137, 0.436, 0.92], [0.07, 0.466, 1.107]),  # the back
+        _box([-0.137, 0.268, 1.088], [0.07, 0.437, 1.107]),  # the top
+        _box([-0.137, 0.268, 0.92], [0.07, 0.436, 0.944]),  # the floor
+    ]
+    inside = np.array([0.007, 0.366, 1.016])
+    assert _roofed(microwave, inside)
+    assert not _roofed(microwave[:3] + microwave[4:], inside)  # without its top
+    assert not _roofed(microwave, inside + np.array([0.0, -0.2, 0.0]))  # in front of it
+    basket = [
+        _box([-0.1, -0.1, 0.0], [-0.09, 0.1, 0.08]),
+        _box([0.09, -0.1, 0.0], [0.1, 0.1, 0.08]),
+        _box([-0.1, -0.1, 0.0], [0.1, 0.1, 0.01]),
+    ]
+    assert not _roofed(basket, np.array([0.0, 0.0, 0.01]))
+    burner = [_box([-0.05, -0.05, 0.01], [0.05, 0.05, 0.02])]
+    assert not _roofed(burner, np.zeros(3))

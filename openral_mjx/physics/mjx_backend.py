@@ -37,6 +37,10 @@ from openral_mjx.physics.base import (
 from openral_mjx.physics.contact_sensors import add_contact_sensors, sensordata_addresses
 
 _CAP = "max_contact_points"
+# One physics step as a `jit` of its own: JAX then traces MJX's step once per model and data
+# layout and reuses it, where the observation probe, Warp's warm-up and the episode's scan
+# (traced again to settle its carry's batching) each traced it anew.
+_physics_step = jax.jit(mjx.step)
 
 
 def numeric(m: mujoco.MjModel, name: str) -> int | None:
@@ -213,7 +217,7 @@ class MjxBackend(PhysicsBackend):
 
         def substep(_: int, carry: tuple[mjx.Data, jax.Array]) -> tuple[mjx.Data, jax.Array]:
             d, kept = carry
-            d = mjx.step(mx, d)
+            d = _physics_step(mx, d)
             return d, kept & self._contacts_kept(d)
 
         d, kept = jax.lax.fori_loop(0, self.n_substeps, substep, (d, ok))

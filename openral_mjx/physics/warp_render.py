@@ -348,6 +348,7 @@ class WarpCameras:
         }
         self._contexts: dict[int, Any] = {}
         self._drawn: mujoco.MjModel | None = None  # `render_model`'s copy, once built
+        self._ones: dict[tuple[int, Any], Any] = {}  # `_one`'s jitted renders
         self.render = self._make_render()
 
     def context(self, nworld: int) -> Any:
@@ -407,16 +408,9 @@ class WarpCameras:
         from mujoco.mjx.warp import render_context
 
         rc = self.context(axis_size).pytree()
-
         leaves, treedef = jax.tree.flatten((d, model))
-
-        def one(leaves: list[jax.Array]) -> tuple[jax.Array, jax.Array, jax.Array]:
-            d, model = jax.tree.unflatten(treedef, leaves)
-            d = mjx.refit_bvh(self.mx, d, rc)
-            rgb, depth, d = mjx.render(self.mx.replace(**model), d, rc)
-            return rgb, depth, d._impl._jax_token
-
         in_axes = [0 if b else None for b in batched]
+        one = self._one(axis_size, treedef)
         rgb, depth, token = jax.vmap(one, in_axes=(in_axes,), axis_size=axis_size)(leaves)
         # One row per env (an unbatched batch of one comes back with an extra axis).
         rgb, depth = rgb.reshape(axis_size, -1), depth.reshape(axis_size, -1)
@@ -433,6 +427,24 @@ class WarpCameras:
                 valid = (raw > 0) & (raw >= s.min_range_m) & (raw <= s.max_range_m)
                 out[s.key] = jnp.where(valid, raw, jnp.float32(s.max_range_m))
         return out, token
+
+    def _one(self, axis_size: int, treedef: Any) -> Any:
+        """One env's refit and render through the context for `axis_size`, as a `jit` kept
+        per batch size and data layout: JAX then traces MuJoCo-Warp's render once per input
+        shapes, where every trace of a step (the episode's scan, the observation probe, the
+        warm-up) used to trace it again (~1 s each on the 2-core machine)."""
+        key = (axis_size, treedef)
+        if key not in self._ones:
+            rc = self.context(axis_size).pytree()
+
+            def one(leaves: list[jax.Array]) -> tuple[jax.Array, jax.Array, jax.Array]:
+                d, model = jax.tree.unflatten(treedef, leaves)
+                d = mjx.refit_bvh(self.mx, d, rc)
+                rgb, depth, d = mjx.render(self.mx.replace(**model), d, rc)
+                return rgb, depth, d._impl._jax_token
+
+            self._ones[key] = jax.jit(one)
+        return self._ones[key]
 
     def _make_render(self):
         @jax.custom_batching.custom_vmap

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import copy
 import dataclasses
+import functools
 from typing import Any
 
 import jax
@@ -143,7 +144,7 @@ def render_model(model: mujoco.MjModel, texels: int = 0) -> mujoco.MjModel:
     for t in map(int, changed):
         a, nch = int(out.tex_adr[t]), int(out.tex_nchannel[t])
         w, h = int(out.tex_width[t]), int(out.tex_height[t])
-        image = out.tex_data[a : a + w * h * nch].reshape(h, w, nch).copy()
+        image = out.tex_data[a : a + w * h * nch].reshape(h, w, nch)  # a view into the copy
         rgb = min(3, nch)  # alpha stays linear
         if srgb[t]:
             image[..., :rgb] = srgb_to_linear(image[..., :rgb])
@@ -347,17 +348,20 @@ class WarpCameras:
             for c in self.cameras
         }
         self._contexts: dict[int, Any] = {}
-        self._drawn: mujoco.MjModel | None = None  # `render_model`'s copy, once built
         self._ones: dict[tuple[int, Any], Any] = {}  # `_one`'s jitted renders
         self.render = self._make_render()
+
+    @functools.cached_property
+    def drawn_model(self) -> mujoco.MjModel:
+        """`render_model` of the physics' model, built once for every batch size's context:
+        its textures' levels take seconds."""
+        return render_model(self.mj_model, self.style.texels)
 
     def context(self, nworld: int) -> Any:
         """The render context for batches of `nworld` (built on first use)."""
         if nworld not in self._contexts:
-            if self._drawn is None:  # one per process: the textures' levels take seconds
-                self._drawn = render_model(self.mj_model, self.style.texels)
             self._contexts[nworld] = mjx.create_render_context(
-                self._drawn,
+                self.drawn_model,
                 nworld=nworld,
                 devices=self.devices,
                 cam_active=[c.cam_id for c in self.cameras],

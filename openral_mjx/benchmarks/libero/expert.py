@@ -271,8 +271,8 @@ def _atom_plan(
         if atom["kind"] == "on_site":
             top = float(atom["size"][2])
         site = d.xpos[target] + d.xmat[target].reshape(3, 3) @ site_pos
-        if _roofed(_geom_boxes(m, d, target), site):
-            return {"kind": SKIP}
+        if _colliding_geoms(m, target) and _roofed(_geom_boxes(m, d, target), site):
+            return {"kind": SKIP}  # (a region on a body with no colliding part has no roof)
     return {
         "kind": PICK,
         "point": grasp,

@@ -35,12 +35,26 @@ from openral_mjx.physics.base import (
     reference_qpos,
 )
 from openral_mjx.physics.contact_sensors import add_contact_sensors, sensordata_addresses
+from openral_mjx.physics.visual_meshes import collision_meshes_only
 
 _CAP = "max_contact_points"
 # One physics step as a `jit` of its own: JAX then traces MJX's step once per model and data
 # layout and reuses it, where the observation probe, Warp's warm-up and the episode's scan
 # (traced again to settle its carry's batching) each traced it anew.
 _physics_step = jax.jit(mjx.step)
+
+
+def without_texels(mx: mjx.Model) -> mjx.Model:
+    """`mx` with its textures' texels and the meshes' texture coordinates emptied: neither
+    MJX's step nor MuJoCo-Warp's render reads them from the model (its render context holds
+    its own copies, built from the `MjModel`). MJX keeps the model's NumPy fields as static
+    pytree metadata and checksums every one of them each time the model is flattened (every
+    trace of a step, a render, a `vmap`): 147 MB of texels on a LIBERO task with cameras,
+    ~7 s of its start-up on the 2-core machine spent in `zlib.crc32`."""
+    return mx.replace(
+        tex_data=np.zeros(0, mx.tex_data.dtype),
+        mesh_texcoord=np.zeros((0, 2), mx.mesh_texcoord.dtype),
+    )
 
 
 def numeric(m: mujoco.MjModel, name: str) -> int | None:
@@ -97,6 +111,9 @@ class MjxBackend(PhysicsBackend):
             )
             self.mj_model = with_sensors.compile()  # ids unchanged: sensors come last
             self._contact_adr = sensordata_addresses(self.mj_model, ranges)
+            spec = with_sensors
+        # The model MJX steps: `mj_model` less the meshes only cameras see (`visual_meshes`).
+        self.physics_model = collision_meshes_only(spec, self.mj_model)
         m = self.mj_model
         pairs_cap = numeric(m, "max_geom_pairs")
         if self.impl == "jax" and pairs_cap is not None and pairs_cap >= 0:
@@ -119,7 +136,9 @@ class MjxBackend(PhysicsBackend):
         self._park_qpos = jnp.asarray(reference_qpos(self.mj_model), dtype=jnp.float32)
 
     def _put_model(self) -> mjx.Model:
-        return mjx.put_model(self.mj_model, impl=self.impl, device=self.home_device())
+        return without_texels(
+            mjx.put_model(self.physics_model, impl=self.impl, device=self.home_device())
+        )
 
     def _make_data(self) -> mjx.Data:
         return mjx.make_data(self.mx, device=self.home_device())

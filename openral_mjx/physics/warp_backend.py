@@ -20,7 +20,7 @@ from openral_mjx.core.errors import ConfigError
 from openral_mjx.core.rotations import quat_to_mat
 from openral_mjx.physics.base import Quantities, all_finite, reference_qpos, warp_installed
 from openral_mjx.physics.cameras import SensorSpec, sensor_key
-from openral_mjx.physics.mjx_backend import MjxBackend, mjx
+from openral_mjx.physics.mjx_backend import MjxBackend, mjx, without_texels
 from openral_mjx.physics.warp_render import WarpCameras, renderable
 from openral_mjx.raycast import LaserSpec
 
@@ -77,16 +77,22 @@ class WarpBackend(MjxBackend):
             here = jax.process_index()
             gpus = [d for d in self.devices() if d.platform == "gpu" and d.process_index == here]
             names = [f"cuda:{d.local_hardware_id}" for d in gpus] or None
-            self.cameras = WarpCameras(self.mj_model, self.mx, self._render_specs, names)
+            drawn = self.mx
+            if self.physics_model is not self.mj_model:  # cameras see the visual meshes
+                drawn = without_texels(
+                    mjx.put_model(self.mj_model, impl="warp", device=self.home_device())
+                )
+            self.cameras = WarpCameras(self.mj_model, drawn, self._render_specs, names)
 
     def _put_model(self) -> mjx.Model:
-        mx = mjx.put_model(self.mj_model, impl="warp", device=self.home_device())
+        mx = mjx.put_model(self.physics_model, impl="warp", device=self.home_device())
+        mx = without_texels(mx)
         opt_impl = mx.opt._impl.replace(warn_overflow=self._warn)
         return mx.replace(opt=mx.opt.replace(_impl=opt_impl))
 
     def _make_data(self) -> mjx.Data:
         return mjx.make_data(
-            self.mj_model,
+            self.physics_model,
             impl="warp",
             naconmax=self.naconmax,
             naccdmax=self.naccdmax,

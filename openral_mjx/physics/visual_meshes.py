@@ -25,8 +25,9 @@ _SPECK = b"v 0 0 0\nv 0.001 0 0\nv 0 0.001 0\nv 0 0 0.001\nf 1 3 2\nf 1 2 4\nf 1
 _GEOM_FIELDS = ("geom_pos", "geom_quat", "geom_sameframe", "geom_aabb", "geom_rbound", "geom_size")
 # Arrays allowed to differ: the meshes themselves (the colliding ones are compared apart), the
 # bounding volume hierarchy built over them (MuJoCo's ray casts; MJX's step does not read it),
-# the sizes and the asset paths.
-_MESH_DERIVED = ("mesh_", "bvh_", "_sizes", "tex_pathadr")
+# the textures (1 x 1 in the stepped model: decoding them again took longer than the rest),
+# and the sizes.
+_MESH_DERIVED = ("mesh_", "bvh_", "tex_", "_sizes")
 
 
 def visual_only_meshes(model: mujoco.MjModel) -> list[int]:
@@ -41,8 +42,9 @@ def visual_only_meshes(model: mujoco.MjModel) -> list[int]:
 
 
 def collision_meshes_only(spec: mujoco.MjSpec, model: mujoco.MjModel) -> mujoco.MjModel:
-    """`model` (`spec` compiled) with its visual-only meshes reduced to a speck, or `model`
-    itself where it has none or where the reduced model would differ in anything else."""
+    """`model` (`spec` compiled) with its visual-only meshes reduced to a speck and its
+    textures to a texel, or `model` itself where it has no such mesh, where MuJoCo will not
+    compile the reduced spec, or where the reduced model would differ in anything else."""
     visual = visual_only_meshes(model)
     if not visual:
         return model
@@ -53,7 +55,13 @@ def collision_meshes_only(spec: mujoco.MjSpec, model: mujoco.MjModel) -> mujoco.
         mesh.file, mesh.scale = _SPECK_FILE, [1.0, 1.0, 1.0]
         for data in ("vert", "face", "normal", "texcoord", "facenormal", "facetexcoord"):
             setattr(mesh, f"user{data}", [])  # a mesh given inline rather than by file
-    slim = reduced.compile()
+    for texture in reduced.textures:
+        texture.file, texture.builtin = "", mujoco.mjtBuiltin.mjBUILTIN_FLAT
+        texture.width = texture.height = 1
+    try:
+        slim = reduced.compile()
+    except ValueError:  # a mesh MuJoCo cannot replace (say, one another asset refers to)
+        return model
     geoms = np.flatnonzero(
         (model.geom_type == mujoco.mjtGeom.mjGEOM_MESH) & np.isin(model.geom_dataid, visual)
     )

@@ -17,13 +17,16 @@ _XML = f"""
   <asset>
     <mesh name="hull" vertex="{_TETRA}"/>
     <mesh name="skin" vertex="{_OCTA}" scale="1.5 1 1"/>
+    <texture name="paint" type="2d" builtin="checker" width="64" height="64"/>
+    <material name="paint" texture="paint"/>
   </asset>
   <worldbody>
     <geom type="plane" size="1 1 0.1"/>
     <body pos="0 0 0.3" euler="10 20 30">
       <freejoint/>
       <geom type="mesh" mesh="hull" density="500"/>
-      <geom type="mesh" mesh="skin" contype="0" conaffinity="0" group="1" mass="0"/>
+      <geom type="mesh" mesh="skin" contype="0" conaffinity="0" group="1" mass="0"
+            material="paint"/>
       <geom type="mesh" mesh="hull" contype="0" conaffinity="0" group="1" mass="0" pos="0 0 0.1"/>
     </body>
   </worldbody>
@@ -43,6 +46,7 @@ def test_only_the_mesh_no_colliding_geom_uses_is_reduced() -> None:
     skin, hull = full.mesh("skin").id, full.mesh("hull").id
     assert slim is not full and int(slim.mesh_vertnum[skin]) == 4
     assert int(full.mesh_vertnum[skin]) == 6
+    assert slim.ntexdata < full.ntexdata  # texels: the renderer's, not the physics'
     a, n = int(full.mesh_vertadr[hull]), int(full.mesh_vertnum[hull])
     b = int(slim.mesh_vertadr[hull])
     np.testing.assert_array_equal(slim.mesh_vert[b : b + n], full.mesh_vert[a : a + n])

@@ -224,7 +224,10 @@ class LiberoMjx(Scene):
         if resolve_backend_name(backend) == "mjx":
             self.mjx_changes = for_mjx_jax(self.spec, MJX_CONTACTS_PER_CONDIM)
         meta = t.meta
-        compiled = self.spec.compile()
+        # A copy compiled, not the spec itself: MuJoCo keeps a compiled spec's loaded meshes,
+        # and every later copy of it then takes ~20 ms per element deleted (the controller's
+        # robot-only spec deletes ~160: 3 s of a task's build with its cameras' meshes).
+        compiled = self.spec.copy().compile()
         # The reference pose backends park a diverged env at (and warp warms up from): the
         # first shipped initial state. The MJCF's own qpos0 piles the objects at the origin.
         self.spec.add_key(name="reference", qpos=t.init_states[0][1 : 1 + compiled.nq])

@@ -68,19 +68,19 @@ def collision_meshes_only(spec: mujoco.MjSpec, model: mujoco.MjModel) -> mujoco.
     for name in _GEOM_FIELDS:
         getattr(slim, name)[geoms] = getattr(model, name)[geoms]
     slim.dof_length[:] = model.dof_length  # from the bodies' geoms (MuJoCo-Warp's sleeping)
-    return slim if _same_physics(model, slim) else model
+    return slim if _same_physics(model, slim, visual) else model
 
 
-def _same_physics(full: mujoco.MjModel, slim: mujoco.MjModel) -> bool:
+def _same_physics(full: mujoco.MjModel, slim: mujoco.MjModel, visual: list[int]) -> bool:
     """Whether `slim` equals `full` in every array outside `_MESH_DERIVED`, and in the
-    meshes that collide."""
+    meshes outside `visual` (those that collide)."""
     for name in dir(full):
         a = getattr(full, name)
         if not isinstance(a, np.ndarray) or name.startswith(_MESH_DERIVED):
             continue
         if not np.array_equal(a, getattr(slim, name), equal_nan=True):
             return False
-    kept = sorted(set(range(full.nmesh)) - set(visual_only_meshes(full)))
+    kept = sorted(set(range(full.nmesh)) - set(visual))
     for i in kept:
         a, n = int(full.mesh_vertadr[i]), int(full.mesh_vertnum[i])
         b = int(slim.mesh_vertadr[i])

@@ -85,8 +85,7 @@ class WarpBackend(MjxBackend):
             self.cameras = WarpCameras(self.mj_model, drawn, self._render_specs, names)
 
     def _put_model(self) -> mjx.Model:
-        mx = mjx.put_model(self.physics_model, impl="warp", device=self.home_device())
-        mx = without_texels(mx)
+        mx = super()._put_model()
         opt_impl = mx.opt._impl.replace(warn_overflow=self._warn)
         return mx.replace(opt=mx.opt.replace(_impl=opt_impl))
 

@@ -8,8 +8,8 @@ import numpy as np
 from openral_mjx.physics.visual_meshes import collision_meshes_only, visual_only_meshes
 
 # A box falling onto a floor with a mesh that collides (`hull`) and one that only cameras see
-# (`skin`, a finer octahedron sharing the box's body); `shared` is a visual geom of a mesh that
-# a colliding geom also uses, so it stays.
+# (`skin`, a finer octahedron sharing the box's body); the last geom is a visual one of `hull`,
+# which a colliding geom also uses, so `hull` stays.
 _OCTA = "0.05 0 0  -0.05 0 0  0 0.05 0  0 -0.05 0  0 0 0.05  0 0 -0.05"
 _TETRA = "0 0 0  0.04 0 0  0 0.04 0  0 0 0.04"
 _XML = f"""
@@ -51,7 +51,14 @@ def test_only_the_mesh_no_colliding_geom_uses_is_reduced() -> None:
     b = int(slim.mesh_vertadr[hull])
     np.testing.assert_array_equal(slim.mesh_vert[b : b + n], full.mesh_vert[a : a + n])
     # the visual geom keeps the full mesh's frame and bounds: cameras place it there
-    for name in ("geom_pos", "geom_quat", "geom_aabb", "geom_rbound", "geom_size"):
+    for name in (
+        "geom_pos",
+        "geom_quat",
+        "geom_sameframe",
+        "geom_aabb",
+        "geom_rbound",
+        "geom_size",
+    ):
         np.testing.assert_array_equal(getattr(slim, name), getattr(full, name))
 
 

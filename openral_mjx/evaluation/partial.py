@@ -37,3 +37,12 @@ def add_warnings(counts: Iterable[Mapping[str, int]]) -> dict[str, int]:
     for c in counts:
         total.update(c)
     return dict(sorted(total.items()))
+
+
+def add_seconds(parts: Iterable[Mapping[str, float]]) -> dict[str, float]:
+    """Timings of several runs (e.g. their `build_s`), added by what they timed."""
+    total: dict[str, float] = {}
+    for part in parts:
+        for what, seconds in part.items():
+            total[what] = total.get(what, 0.0) + seconds
+    return total

@@ -7,7 +7,7 @@ import dataclasses
 import datetime as dt
 import functools
 import time
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from typing import Any
 
 import jax
@@ -17,7 +17,7 @@ from openral_mjx.core.errors import ConfigError
 from openral_mjx.core.interrupts import stop_reason, stop_signal
 from openral_mjx.core.options import to_dict
 from openral_mjx.evaluation.episodes import episode_results
-from openral_mjx.evaluation.partial import Interrupted, add_warnings
+from openral_mjx.evaluation.partial import Interrupted, add_seconds, add_warnings
 from openral_mjx.evaluation.provenance import device_description, package_versions
 from openral_mjx.evaluation.sequential import PairedRule, SequentialRule
 from openral_mjx.evaluation.spec import RunSpec
@@ -206,6 +206,7 @@ def evaluate_spec(
     resume: EvalReport | None = None,
     decide: PairedRule | None = None,
     keep_finished: bool = False,
+    build_s: Mapping[str, float] | None = None,
 ) -> Evaluation:
     """`run_evaluation` for a checked `RunSpec`: `scene` (a name: built from `options` as the
     spec says, and closed with the `Evaluation`) run under `policy`.
@@ -223,7 +224,10 @@ def evaluate_spec(
     same looks and reaches the same decision as an uninterrupted one.
 
     `keep_finished`: a fixed-size run does the same, keeping its seeds up to the last chunk
-    of `n_envs` that finished, and resumes from there to the uninterrupted run's episodes."""
+    of `n_envs` that finished, and resumes from there to the uninterrupted run's episodes.
+
+    `build_s`: seconds the caller spent building the `scene` or `policy` it passes built
+    (the report's `build_s`, beside what is built here)."""
     rule, n_episodes = spec.stopping_rule(), spec.episodes
     if decide is not None and (rule is not None or n_episodes != decide.cap):
         raise ConfigError(
@@ -234,7 +238,8 @@ def evaluate_spec(
     earlier = _resumed(resume, rule, decide, keep_finished)
     owned = contextlib.ExitStack()
     with owned, count_warnings() as warned:  # on an error, close what this call built
-        scene, pol = _scene_and_policy(scene, policy, spec, options, randomize, owned)
+        building = dict(build_s or {})
+        scene, pol = _scene_and_policy(scene, policy, spec, options, randomize, owned, building)
         policy = policy if isinstance(policy, str) else pol.name  # the report names it
         steps = scene.max_steps if spec.max_steps is None else spec.max_steps
         aligned = pol.aligned_episodes
@@ -258,7 +263,8 @@ def evaluate_spec(
 
         stops = rule is not None or decide is not None
 
-        params, _ = pol.init(jax.random.PRNGKey(seed), scene.observation_spec)
+        with timed(building, "policy"):
+            params, _ = pol.init(jax.random.PRNGKey(seed), scene.observation_spec)
         assemble = functools.partial(
             _report, scene, policy, spec, rule, batching, refill_every, steps, resume, warned
         )
@@ -305,13 +311,13 @@ def evaluate_spec(
             episodes = episodes_of(arrays, seeds, timing) if n else []
             total = len(requested)
             partial = PartialInfo(stop_reason(signal), "episodes", len(earlier) + n, total)
-            kept = assemble(episodes, timing, partial)
+            kept = assemble(episodes, timing, partial, build_s=building)
             if decide is not None:
                 kept.decision = decide.info()
             raise Interrupted(signal, kept) from e
         n_new = len(arrays["success"])
         episodes = episodes_of(arrays, requested[len(earlier) : len(earlier) + n_new], timing)
-        report = assemble(episodes, timing)
+        report = assemble(episodes, timing, build_s=building)
         if decide is not None:
             report.decision = decide.info()
         resources = owned.pop_all()  # handed to the Evaluation
@@ -325,18 +331,21 @@ def _scene_and_policy(
     options: Mapping[str, Any] | None,
     randomize: Sequence[str],
     owned: contextlib.ExitStack,
+    build_s: dict[str, float],
 ) -> tuple[Scene, Policy]:
     """The run's scene (built from its name as `spec` says, with the cameras a lerobot
     policy's features imply) with `randomize`'s factors, and its policy told the scene's
-    instruction; what is built here is closed by `owned`."""
+    instruction; what is built here is closed by `owned`, its seconds added to `build_s`."""
     if isinstance(scene, str):
         if isinstance(policy, str):  # a lerobot policy's cameras, unless options name them
             options = policy_options(scene, policy, options)
-        scene = build_spec_scene(scene, options, spec)
+        with timed(build_s, "scene"):
+            scene = build_spec_scene(scene, options, spec)
         owned.callback(scene.close)
     scene = randomization.randomize(scene, randomize)
     if isinstance(policy, str):
-        pol = make_policy(policy, scene)
+        with timed(build_s, "policy"):
+            pol = make_policy(policy, scene)
         if pol.close is not None:
             owned.callback(pol.close)
     else:
@@ -344,6 +353,16 @@ def _scene_and_policy(
     if pol.instruct is not None:  # this task's (a suite shares one policy over its tasks)
         pol.instruct(scene.instruction)
     return scene, pol
+
+
+@contextlib.contextmanager
+def timed(seconds: dict[str, float], what: str) -> Iterator[None]:
+    """Add the seconds the block takes to `seconds[what]` (a report's `build_s`)."""
+    start = time.perf_counter()
+    try:
+        yield
+    finally:
+        seconds[what] = seconds.get(what, 0.0) + time.perf_counter() - start
 
 
 def _stopped_timing(n: int, chunk: int, run_s: float, steps: int) -> RunTiming:
@@ -415,6 +434,8 @@ def _report(
     episodes: list[EpisodeResult],
     timing: RunTiming,
     partial: PartialInfo | None = None,
+    *,
+    build_s: Mapping[str, float] | None = None,
 ) -> EvalReport:
     """The report over `episodes` (after those of `resume`, whose timings add to `timing`'s)."""
     earlier = [] if resume is None else resume.episodes
@@ -491,4 +512,5 @@ def _report(
         instruction=scene.instruction,
         partial=partial,
         mujoco_warnings=add_warnings([warned, {} if resume is None else resume.mujoco_warnings]),
+        build_s=add_seconds([build_s or {}, {} if resume is None else resume.build_s]),
     )

@@ -6,15 +6,18 @@ a task's scripted expert on a mirror). The report's `per_task` rows give each ta
 interval; its overall rate pools every episode, which is the average of the per-task rates
 (every task runs the same number of episodes), with a Wilson interval over all of them.
 
-`task_processes` > 1 runs that many tasks at once, one process each (the policy built in each
-process). A task's episodes do not depend on which process ran it or beside what. On one GPU
-this pays only under NVIDIA's MPS daemon (`nvidia-cuda-mps-control -d`): without it the
-processes take turns on the GPU (8 MetaWorld tasks at 1,000 envs: 0.94x one at a time; with
-MPS 2.6x, 16 tasks 3.6x; BENCHMARKS.md).
+`task_processes` > 1 runs that many tasks at once, one process each (each process builds the
+policy once and keeps it for its next tasks, as a run in turn does). A task's episodes do not
+depend on which process ran it or beside what. On one GPU this pays only under NVIDIA's MPS
+daemon (`nvidia-cuda-mps-control -d`): without it the processes take turns on the GPU (8
+MetaWorld tasks at 1,000 envs: 0.94x one at a time; with MPS 2.6x, 16 tasks 3.6x;
+BENCHMARKS.md). A lerobot policy that samples per env from torch's global random state (not
+from a key) draws what its process's earlier tasks left it, in turn or in processes.
 
 `cluster` sends the tasks to a Ray cluster instead (`evaluation.cluster`), each through the
-same per-task entry point as a task process, so per seed the report is a local run's; it
-records where each task ran and how often one was started again after its worker died.
+same per-task entry point as a task process (each building its policy), so per seed the report
+is a local run's; it records where each task ran and how often one was started again after its
+worker died.
 A host scene's task runs its env workers as processes on the node its Ray task landed on, and
 asks the cluster for one CPU per worker (`--opt n_workers=K`; else one CPU, `--threads`).
 """
@@ -37,8 +40,8 @@ from openral_mjx.core.errors import ConfigError, RunFailed
 from openral_mjx.core.interrupts import stop_signal
 from openral_mjx.evaluation import cluster
 from openral_mjx.evaluation.cluster import RayRun
-from openral_mjx.evaluation.partial import Interrupted, add_warnings, partial_info
-from openral_mjx.evaluation.run import build_spec_scene, evaluate_spec, policy_options
+from openral_mjx.evaluation.partial import Interrupted, add_seconds, add_warnings, partial_info
+from openral_mjx.evaluation.run import build_spec_scene, evaluate_spec, policy_options, timed
 from openral_mjx.evaluation.spec import RunSpec
 from openral_mjx.policies import Policy, make_policy
 from openral_mjx.report import EvalReport, PartialInfo, PartPlacement
@@ -158,21 +161,14 @@ def _suite_in_turn(
     reports: list[EvalReport],
 ) -> None:
     """The `tasks` one after another, each one's report appended to `reports` as it ends."""
-    pol: Policy | None = None
+    kept: dict[str, Policy] = {}
     try:
         for i, task in enumerate(tasks):
             if on_task is not None:
                 on_task(i, len(tasks), task)
-            built = build_spec_scene(scene, {**(options or {}), "task": task}, spec)
-            with contextlib.closing(built):
-                if pol is None or pol.per_task:
-                    _close(pol)
-                    pol = None
-                    pol = make_policy(policy, built)
-                with evaluate_spec(built, pol, spec, on_chunk=on_chunk) as evaluation:
-                    reports.append(evaluation.report)
+            reports.append(_task_report(scene, task, policy, options or {}, spec, kept, on_chunk))
     finally:
-        _close(pol)
+        _close_kept(kept)
 
 
 def _close(policy: Policy | None) -> None:
@@ -180,14 +176,25 @@ def _close(policy: Policy | None) -> None:
         policy.close()
 
 
+def _close_kept(kept: dict[str, Policy]) -> None:
+    """Close the policies `kept` for a next task that did not come."""
+    while kept:
+        _close(kept.popitem()[1])
+
+
+# a task process's policy, kept from one of its tasks to the next (see `_pooled_task_report`)
+_PROCESS_POLICIES: dict[str, Policy] = {}
+
+
 def _start_task_process(compile_cache: Path | None, processes: int = 1) -> None:
     """A task process, one of `processes` at once: allocate GPU memory as needed (they share
     the GPU), not 75% of it up front, size batches for its share of the memory, and cache
-    compiled programs where the parent does."""
+    compiled programs where the parent does. The policy it keeps is closed as it ends."""
     os.environ["XLA_PYTHON_CLIENT_PREALLOCATE"] = "false"
     share_devices(processes)
     if compile_cache is not None:
         enable_compilation_cache(compile_cache)
+    multiprocessing.util.Finalize(None, _close_kept, (_PROCESS_POLICIES,), exitpriority=10)
 
 
 def _task_report(
@@ -196,16 +203,37 @@ def _task_report(
     policy: str,
     options: Mapping[str, Any],
     spec: RunSpec,
+    kept: dict[str, Policy] | None = None,
+    on_chunk: Callable[[int, int, int], None] | None = None,
 ) -> EvalReport:
-    """One task's report, its scene and policy built (and closed) in this process."""
-    built = build_spec_scene(scene, {**options, "task": task}, spec)
+    """One task's report, its scene built (and closed) in this process, its policy too or
+    taken from `kept`. A policy not bound to one task (`Policy.per_task`) is left in `kept`
+    for the next task, as loading one (a lerobot checkpoint) takes seconds; else closed."""
+    build_s: dict[str, float] = {}
+    with timed(build_s, "scene"):
+        built = build_spec_scene(scene, {**options, "task": task}, spec)
     with contextlib.closing(built):
-        pol = make_policy(policy, built)
+        pol = (kept or {}).pop(policy, None)
+        if pol is None:
+            with timed(build_s, "policy"):
+                pol = make_policy(policy, built)
+        keep = kept is not None and not pol.per_task
         try:
-            with evaluate_spec(built, pol, spec) as evaluation:
-                return evaluation.report
+            with evaluate_spec(built, pol, spec, on_chunk=on_chunk, build_s=build_s) as done:
+                return done.report
         finally:
-            _close(pol)
+            if keep and kept is not None:
+                kept[policy] = pol
+            else:
+                _close(pol)
+
+
+def _pooled_task_report(
+    scene: str, task: str, policy: str, options: Mapping[str, Any], spec: RunSpec
+) -> EvalReport:
+    """`_task_report` in a pool's task process, which keeps its policy for its next task
+    (as a suite run in turn does): per seed the episodes are a fresh policy's."""
+    return _task_report(scene, task, policy, options, spec, _PROCESS_POLICIES)
 
 
 def cluster_task_report(
@@ -284,7 +312,7 @@ def _suite_in_processes(
     compile_cache: Path | None,
     on_task: Callable[[int, int, str], None] | None,
     reports: list[EvalReport],
-    run_task: Callable[..., EvalReport] = _task_report,
+    run_task: Callable[..., EvalReport] = _pooled_task_report,
 ) -> None:
     """The `tasks` with `task_processes` at once (fresh `spawn`ed processes: no JAX or GPU
     state is inherited); `reports` gets the first tasks' reports in the suite's order as soon
@@ -455,6 +483,7 @@ def merge_reports(
         episodes=[e for r in reports for e in r.episodes],
         partial=partial,
         mujoco_warnings=add_warnings(r.mujoco_warnings for r in reports),
+        build_s=add_seconds(r.build_s for r in reports),
     )
 
 

@@ -27,7 +27,7 @@ from openral_mjx.report.validation import (
     validate_json,
 )
 
-SCHEMA_VERSION = "openral_mjx.eval_report/7"
+SCHEMA_VERSION = "openral_mjx.eval_report/8"
 # /2 has the same fields as /3; /3 only widened what the latency fields and metadata may hold
 # (a torch policy's own latencies, a host worker's error), so a /2 report reads as it was.
 # /4 added `live_env_steps_per_s` (continuous batching), None when read from /2 or /3.
@@ -36,12 +36,15 @@ SCHEMA_VERSION = "openral_mjx.eval_report/7"
 # `mujoco_warnings` (MuJoCo's warnings by kind), None and {} when read from /2../5.
 # /7 added `decision` (a sequential paired comparison's design, looks and verdict) and
 # `cluster` (where a suite's tasks ran on a Ray cluster), None when read from /2../6.
+# /8 added `build_s` (seconds building the scene and the policy before compiling), {} when
+# read from /2../7.
 READABLE_VERSIONS = (
     "openral_mjx.eval_report/2",
     "openral_mjx.eval_report/3",
     "openral_mjx.eval_report/4",
     "openral_mjx.eval_report/5",
     "openral_mjx.eval_report/6",
+    "openral_mjx.eval_report/7",
     SCHEMA_VERSION,
 )
 
@@ -269,6 +272,9 @@ class EvalReport:
     `mujoco_warnings` counts MuJoCo C's warnings during the run by kind (e.g. "BADQACC"): the
     messages MuJoCo would have printed (see `physics.mj_warnings`), counted instead.
     `cluster` is None for a run on this machine, else where its parts ran (`ClusterInfo`).
+    `build_s` is what came before `compile_s`: seconds building the `scene` and the `policy`
+    (with its parameters), by what the run built (a suite's: summed over its tasks; a policy
+    kept from an earlier task counts only its parameters), so that start-up is accounted for.
     """
 
     __pydantic_config__: ClassVar[ConfigDict] = STRICT
@@ -309,6 +315,7 @@ class EvalReport:
     mujoco_warnings: dict[str, int] = dataclasses.field(default_factory=dict)
     decision: DecisionInfo | None = None
     cluster: ClusterInfo | None = None
+    build_s: dict[str, float] = dataclasses.field(default_factory=dict)
     schema_version: str = SCHEMA_VERSION
 
     def summary(self) -> str:

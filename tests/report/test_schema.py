@@ -66,6 +66,23 @@ def test_cluster_record_round_trips(report, tmp_path):
         EvalReport.from_dict(bad)
 
 
+def test_build_seconds_are_recorded_and_older_reports_have_none(report, tmp_path):
+    """The run built its scene and policy by name: both are timed (schema /8), saved and read
+    back; a report of /7 has no such timings."""
+    assert set(report.build_s) == {"scene", "policy"}
+    assert all(0.0 < s < 600.0 for s in report.build_s.values()), report.build_s
+    save_report(report, tmp_path / "r.json")
+    assert load_report(tmp_path / "r.json").build_s == report.build_s
+    old = report.to_dict()
+    del old["build_s"]
+    old["schema_version"] = "openral_mjx.eval_report/7"
+    assert EvalReport.from_dict(old).build_s == {}
+    bad = report.to_dict()
+    bad["build_s"] = {**report.build_s, "scene": "slow"}
+    with pytest.raises(ConfigError, match=r"build_s.scene"):
+        EvalReport.from_dict(bad)
+
+
 def test_report_fields(report):
     assert report.n_episodes == 6 and len(report.episodes) == 6
     assert report.backend == "c" and report.device.startswith("cpu")
@@ -170,7 +187,7 @@ SAVED_REPORTS = sorted(
 
 @pytest.mark.parametrize("path", SAVED_REPORTS, ids=lambda p: p.name)
 def test_every_saved_report_validates(path):
-    """Every full report kept in benchmarks/ (schemas /2 to /5) passes validation."""
+    """Every full report kept in benchmarks/ (of any readable schema) passes validation."""
     loaded = load_report(path)
     assert loaded.n_episodes == len(loaded.episodes) > 0
 

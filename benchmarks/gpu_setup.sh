@@ -1,10 +1,18 @@
 #!/usr/bin/env bash
 # Source on the GPU machine (see ../shared/GPU.md): installs the wheels carried in .gpu/ and,
 # once its three parts have arrived in /tmp/warp-parts, warp-lang; sets PYTHONPATH.
-#   part N of warp:   WARP_PART=N source benchmarks/gpu_setup.sh   (carry .warpN)
+#   part N of warp:   WARP_PART=N source benchmarks/gpu_setup.sh   (carry .warpN; the wheel's
+#                     parts may be re-split into more, smaller ones: the last brings NAME)
 #   later calls:      source benchmarks/gpu_setup.sh
 set -e
 export PYTHONPATH=/tmp/site:$PWD PYTHONUNBUFFERED=1
+# The machine's image sets PYTHONDONTWRITEBYTECODE=1 and its packages (and ours, installed with
+# --no-compile) come without bytecode, so every Python process compiled ~3,400 modules from
+# source: 32-38 s to import the evaluator and lerobot, against 14-17 s once they are cached
+# (2026-11-29). An installed machine keeps bytecode; here it goes to /tmp/pyc (the image's
+# site-packages may not be writable), and the first process to import a module writes it.
+unset PYTHONDONTWRITEBYTECODE
+export PYTHONPYCACHEPREFIX=/tmp/pyc
 # .gpu may come split over calls (.gpu, .gpu2; .gpu3: brax for finetune; .gpulr: lerobot 0.6.1
 # and the small packages it imports that the image lacks; .gpucv: opencv-python-headless, which
 # lerobot imports at start; .gpust: pydantic, rich and flatbuffers, which the evaluator imports)

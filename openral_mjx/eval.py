@@ -39,7 +39,7 @@ from openral_mjx.evaluation import Evaluation, cluster
 from openral_mjx.evaluation.frames import check_frames, record_frames, save_frames
 from openral_mjx.evaluation.partial import Interrupted
 from openral_mjx.evaluation.replay import EpisodeTrace, choose_seeds, trace_episodes
-from openral_mjx.evaluation.run import build_spec_scene, evaluate_spec, policy_options
+from openral_mjx.evaluation.run import build_spec_scene, evaluate_spec, policy_options, timed
 from openral_mjx.evaluation.suite import evaluate_suite, format_tasks, mps_running
 from openral_mjx.evaluation.sweep import SweepCluster, run_sweep
 from openral_mjx.physics.gl import GLUnavailable, camera_id, gl_backend
@@ -67,6 +67,7 @@ class Built:
 
     scene: Scene | None = None
     options: dict = dataclasses.field(default_factory=dict)
+    build_s: dict[str, float] = dataclasses.field(default_factory=dict)  # the report's
     camera: str = ""
     gl: str = ""
     no_gl: GLUnavailable | None = None
@@ -85,9 +86,11 @@ def build(plan: EvalPlan, owned: contextlib.ExitStack) -> Built:
     # (a sweep's points connect in `run_sweep`)
     actors = args.cluster is not None and args.sweep is None
     ray = owned.enter_context(cluster.connected(args.cluster)) if actors else None
-    scene = build_spec_scene(
-        args.scene, options, plan.spec, randomize=args.randomize if args.sweep is None else ()
-    )
+    build_s: dict[str, float] = {}
+    with timed(build_s, "scene"):
+        scene = build_spec_scene(
+            args.scene, options, plan.spec, randomize=args.randomize if args.sweep is None else ()
+        )
     owned.callback(scene.close)
     if ray is not None:
         assert isinstance(scene, HostScene)  # validate: --cluster without --suite is a host scene
@@ -104,7 +107,7 @@ def build(plan: EvalPlan, owned: contextlib.ExitStack) -> Built:
             f"note: one process drives {n_gpus} GPUs on warp at ~1.5x one GPU; "
             f"--processes {n_gpus} runs one process per GPU (~1.8-1.9x)"
         )
-    built = Built(scene, options)
+    built = Built(scene, options, build_s)
     if plan.want_video:
         built.camera = args.video_camera or default_camera(scene)
         camera_id(scene.mj_model, built.camera)
@@ -154,6 +157,7 @@ def execute(
             resume=plan.resume if isinstance(plan.resume, EvalReport) else None,
             decide=plan.decide,
             keep_finished=not writes_media(args),
+            build_s=built.build_s,
         )
     owned.enter_context(evaluation)
     return evaluation

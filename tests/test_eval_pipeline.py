@@ -82,6 +82,8 @@ def test_each_step_alone(capsys, tmp_path):
         written = eval_cli.write(plan, built, result)
     assert written is not None and written.report.n_episodes == 2
     assert load_report(tmp_path / "r.json").successes == written.report.successes
+    # the scene `build` made and the policy `execute` made are both timed in the report
+    assert set(written.report.build_s) == {"scene", "policy"} == set(built.build_s) | {"policy"}
     capsys.readouterr()
     eval_cli.show(plan, written)
     out = capsys.readouterr().out

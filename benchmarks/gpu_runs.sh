@@ -280,6 +280,20 @@ json.dump(d, open(sys.argv[2], 'w'), indent=1)" "/tmp/libero_suite_$s.json" \
     done; wait)
     grep -h "success" "$out"/at_once/*.log | cut -c1-200
     mps_stop ;;
+  libero-four-suites)  # issue 42: the four suites' standard protocol as one eval (`--suite` with
+                       # the four, comma-separated: one pool of TASK_PROCS task processes over the
+                       # 40 tasks, under MPS), POLICY as in libero-suites-at-once
+    policy=${POLICY:-random}; opts=()
+    if [ "$policy" = act ]; then
+      [ -d /tmp/act_libero ] || python3 benchmarks/libero_act_policy.py --out /tmp/act_libero \
+        --size "${IMAGE:-128}" | tail -1
+      policy=lerobot:/tmp/act_libero; opts=(--opt "image_size=${IMAGE:-128}")
+    fi
+    MPS=1; mps_start || exit 1
+    ev libero_four_suites --scene libero_mjx --backend warp --n-envs 50 --policy "$policy" \
+      "${opts[@]}" --task-processes "${TASK_PROCS:-16}" \
+      --suite libero_spatial,libero_object,libero_goal,libero_10
+    mps_stop ;;
   libero-cams)  # issue 42: LIBERO's two cameras on warp (MuJoCo-Warp's renderer, IMAGE px)
                 # against the same run without them: TASK at NS envs, STEPS control steps,
                 # random policy, fixed chunks (every episode runs to STEPS)

@@ -26,8 +26,9 @@ def _per_scene(what: str) -> str:
 
 TASK_HELP = f"Task of a multi-task scene (--list shows each scene's): {_per_scene('tasks')}."
 SUITE_HELP = (
-    f"Evaluate every task of a suite ({_per_scene('suites')}); reports per-task rates and "
-    "their average."
+    f"Evaluate every task of a suite ({_per_scene('suites')}), or of several comma-separated "
+    "(e.g. libero_spatial,libero_object,libero_goal,libero_10); reports per-task rates and "
+    "their average (and each suite's)."
 )
 
 

@@ -47,7 +47,7 @@ from openral_mjx.policies import Policy, make_policy
 from openral_mjx.report import EvalReport, PartialInfo, PartPlacement
 from openral_mjx.runner.compile_cache import enable_compilation_cache
 from openral_mjx.runner.memory import share_devices
-from openral_mjx.scenes import scene_suite
+from openral_mjx.scenes import scene_suite, suite_names
 from openral_mjx.stats import wilson_interval
 
 MPS_PIPE_DEFAULT = "/tmp/nvidia-mps"
@@ -74,11 +74,12 @@ def evaluate_suite(
     resume: EvalReport | None = None,
     cluster: str | None = None,
 ) -> EvalReport:
-    """Run `policy` on every task of `suite` as `spec` says (`RunSpec.for_suite`: a setting a
-    suite cannot honour is refused), on its backend (`host` for a host scene; `mjx`, `warp`
-    or `c` for a mirror such as `metaworld_mjx`). One task at a time, `on_task(i, n, task)`
-    before each; with `task_processes` > 1, that many at once, `on_task` as each ends
-    (`compile_cache`: the directory each process caches compiled programs in).
+    """Run `policy` on every task of `suite` (or of several, comma-separated: their tasks in
+    turn, one report) as `spec` says (`RunSpec.for_suite`: a setting a suite cannot honour is
+    refused), on its backend (`host` for a host scene; `mjx`, `warp` or `c` for a mirror
+    such as `metaworld_mjx`). One task at a time, `on_task(i, n, task)` before each; with
+    `task_processes` > 1, that many at once, `on_task` as each ends (`compile_cache`: the
+    directory each process caches compiled programs in).
 
     Stopped by a signal after its first tasks finished, raises `Interrupted` with the report
     of those (marked partial: the suite's first tasks, as far as every one finished; with
@@ -93,6 +94,7 @@ def evaluate_suite(
     that cluster, all at once as its resources allow, timed as with several processes; the
     report's `cluster` says where each ran and counts the retries."""
     spec = spec.for_suite()
+    suite = ",".join(suite_names(suite))  # "a, b" is "a,b": the report's task, resumed by it
     if task_processes < 1:
         raise ConfigError(f"task_processes must be >= 1, got {task_processes}")
     if cluster is not None and task_processes > 1:
@@ -488,13 +490,20 @@ def merge_reports(
 
 
 def format_tasks(report: EvalReport) -> str:
-    """Per-task rates with intervals, then the average."""
+    """Per-task rates with intervals, then the average (and, over several suites, each
+    suite's: how LIBERO's results are given)."""
     lines = [f"per task ({report.confidence:.0%} Wilson):"]
     for r in report.per_task:
         lines.append(
             f"  {r.task:22s} {r.successes:4d}/{r.n_episodes:<4d} {100 * r.success_rate:5.1f}% "
             f"[{100 * r.ci_low:.1f}, {100 * r.ci_high:.1f}]"
         )
-    rates = [r.success_rate for r in report.per_task]
-    lines.append(f"  average of {len(rates)} tasks: {100 * sum(rates) / len(rates):.1f}%")
+    rates = {r.task: r.success_rate for r in report.per_task}
+    names = suite_names(report.task)
+    several = len(names) > 1
+    groups = [(f"{n}: average", scene_suite(report.scene, n)) for n in names] if several else []
+    for label, tasks in [*groups, ("average", list(rates))]:
+        mine = [rates[t] for t in tasks if t in rates]  # a partial report lacks the last ones
+        if mine:
+            lines.append(f"  {label} of {len(mine)} tasks: {100 * sum(mine) / len(mine):.1f}%")
     return "\n".join(lines)

@@ -137,14 +137,35 @@ def scripted_policy(name: str, policy: str) -> str:
 
 
 def scene_suite(name: str, suite: str) -> list[str]:
-    """The tasks of `suite` in scene `name` (a `ConfigError` for scenes without suites)."""
+    """The tasks of `suite` in scene `name` (a `ConfigError` for scenes without suites).
+
+    `suite` may name several, comma-separated (as lerobot's LIBERO evaluation takes
+    ``libero_spatial,libero_object,libero_goal,libero_10``): their tasks in that order."""
     entry = SCENES.get(name)
     if entry.suites is None:
         with_suites = [n for n in SCENES.names() if SCENES.get(n).suites is not None]
         raise ConfigError(
             f"scene {name!r} has no task suites (--suite is for {', '.join(with_suites)})"
         )
-    return entry.suites(suite)
+    names = suite_names(suite)
+    for repeated in {n for n in names if names.count(n) > 1}:
+        raise ConfigError(f"suite {repeated!r} is named twice in {suite!r}")
+    tasks: list[str] = []
+    for one in names:
+        mine = entry.suites(one)
+        if shared := sorted(set(tasks) & set(mine)):  # e.g. MetaWorld's mt10 is part of mt50
+            raise ConfigError(f"suites in {suite!r} share tasks ({', '.join(shared[:3])}, ...)")
+        tasks += mine
+    return tasks
+
+
+def suite_names(suite: str) -> list[str]:
+    """The suites a `--suite` value names (comma-separated), each stripped; an empty name is a
+    `ConfigError`."""
+    names = [n.strip() for n in suite.split(",")]
+    if not all(names):
+        raise ConfigError(f"--suite {suite!r} has an empty suite name")
+    return names
 
 
 def resolve_scene_backend(name: str, backend: str) -> str:
@@ -207,4 +228,5 @@ __all__ = [
     "scene_options",
     "scene_suite",
     "scripted_policy",
+    "suite_names",
 ]

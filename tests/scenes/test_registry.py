@@ -122,3 +122,23 @@ def test_registered_suites_are_the_scenes_suites():
         SceneEntry(object, make_scene, suites=lambda s: [s])
     with pytest.raises(ValueError, match="suite_names"):
         SceneEntry(object, make_scene, suite_names=("all",))
+
+
+def test_several_suites_run_as_one_in_the_order_named():
+    """`--suite a,b` (lerobot's LIBERO convention) is the tasks of a, then of b; a suite named
+    twice, suites sharing tasks, an empty name or an unknown suite among them is one error."""
+    from openral_mjx.core.errors import ConfigError
+    from openral_mjx.scenes import scene_suite
+
+    four = "libero_spatial, libero_object,libero_goal,libero_10"
+    tasks = scene_suite("libero_mjx", four)
+    assert len(tasks) == 40 and tasks[0] == "libero_spatial/0" and tasks[-1] == "libero_10/9"
+    assert tasks[10:20] == scene_suite("libero_mjx", "libero_object")
+    with pytest.raises(ConfigError, match="suite 'libero_10' is named twice"):
+        scene_suite("libero", "libero_10,libero_goal,libero_10")
+    with pytest.raises(ConfigError, match="suites in 'mt10,mt50' share tasks"):
+        scene_suite("metaworld_mjx", "mt10,mt50")
+    with pytest.raises(ConfigError, match="has an empty suite name"):
+        scene_suite("libero", "libero_10,")
+    with pytest.raises(ConfigError, match=r"unknown LIBERO suite 'libero_100'.*libero_10"):
+        scene_suite("libero", "libero_10,libero_100")

@@ -1,16 +1,18 @@
-"""A suite's policy across its tasks: a task process keeps the one it built for its next task
-(a lerobot checkpoint takes seconds to load), builds one bound to a task again, and its report
-times what it built (`build_s`)."""
+"""Suites: a task process keeps the policy it built for its next task (a lerobot checkpoint
+takes seconds to load), builds one bound to a task again, and its report times what it built
+(`build_s`); a run over several suites prints each suite's average."""
 
 import dataclasses
 
 import pytest
 from cli_runs import per_seed
 
-from openral_mjx.evaluation import RunSpec
+from openral_mjx.evaluation import RunSpec, evaluate
 from openral_mjx.evaluation import suite as suite_module
 from openral_mjx.evaluation.run import build_scene
 from openral_mjx.policies import make_policy
+from openral_mjx.report import TaskRow
+from openral_mjx.scenes import scene_suite
 
 FRICTIONS = {"a": 0.2, "b": 1.0}
 SPEC = RunSpec(backend="c", n_envs=4, n_episodes=4, max_steps=5, threads=1)
@@ -68,3 +70,24 @@ def test_a_policy_bound_to_its_task_is_built_for_each_and_never_kept(tasks):
     report("b", kept)
     assert len(made) == 2 and made[0] != made[1]  # one per task's scene
     assert kept == {} and closed == ["random", "random"]
+
+
+def test_several_suites_print_each_suites_average_and_the_whole_one():
+    """Over `libero_spatial,libero_10` (half of spatial's tasks and all but one of libero_10's
+    succeed), each suite's average over its rows, then the average over all of them; a
+    partial report (libero_10's last task missing) averages what it holds."""
+    one = evaluate("tabletop_push", "zero", n_envs=2, n_episodes=2, max_steps=1, backend="c")
+    tasks = scene_suite("libero_mjx", "libero_spatial,libero_10")[:-1]
+    won = {t: int(t.startswith("libero_10") or int(t[-1]) % 2 == 0) for t in tasks}
+    rows = [TaskRow(t, 1, won[t], float(won[t]), 0.0, 1.0) for t in tasks]
+    report = dataclasses.replace(
+        one, scene="libero_mjx", task="libero_spatial,libero_10", per_task=rows
+    )
+    lines = suite_module.format_tasks(report).splitlines()
+    assert lines[-3:] == [
+        "  libero_spatial: average of 10 tasks: 50.0%",
+        "  libero_10: average of 9 tasks: 100.0%",
+        "  average of 19 tasks: 73.7%",
+    ]
+    single = dataclasses.replace(report, task="libero_spatial", per_task=rows[:10])
+    assert suite_module.format_tasks(single).splitlines()[-1] == "  average of 10 tasks: 50.0%"

@@ -65,11 +65,13 @@ def make_backend(
     quantities: QuantitySpec,
     n_substeps: int,
     settings: PhysicsSettings | None = None,
+    model: mujoco.MjModel | None = None,
 ) -> PhysicsBackend:
-    """Build the named backend (after resolving `auto`) for a composed scene spec."""
+    """Build the named backend (after resolving `auto`) for a composed scene spec (`model`:
+    the spec already compiled, see `PhysicsBackend`)."""
     resolved = resolve_backend_name(name)
     cls = CBackend if resolved == "c" else __getattr__(_CLASSES[resolved])
-    return cls(spec, quantities, n_substeps, settings)
+    return cls(spec, quantities, n_substeps, settings, model)
 
 
 __all__ = [

@@ -178,6 +178,9 @@ class PhysicsBackend(abc.ABC):
         quantities: the bodies and sites to report.
         n_substeps: physics steps per control step (control held constant across them).
         settings: how to run (threads, buffer sizes); each backend reads what applies to it.
+        model: `spec` compiled already, by a caller that needed the model too (from a copy):
+            taken as the backend's `mj_model` instead of compiling the spec again (a LIBERO
+            task's model, with its cameras' meshes, takes seconds to compile).
     """
 
     name: ClassVar[str]
@@ -194,11 +197,12 @@ class PhysicsBackend(abc.ABC):
         quantities: QuantitySpec,
         n_substeps: int,
         settings: PhysicsSettings | None = None,
+        model: mujoco.MjModel | None = None,
     ) -> None:
         self.quantity_spec = quantities
         self.n_substeps = n_substeps
         self.settings = settings or PhysicsSettings()
-        self.mj_model = spec.copy().compile()
+        self.mj_model = spec.copy().compile() if model is None else model
         self.body_ids = tuple(self.mj_model.body(n).id for n in quantities.bodies)
         self.site_ids = tuple(self.mj_model.site(n).id for n in quantities.sites)
         self.geom_ids = tuple(self.mj_model.geom(n).id for n in quantities.geoms)

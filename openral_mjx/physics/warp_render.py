@@ -93,11 +93,20 @@ def style_options(model: mujoco.MjModel, style: RgbStyle) -> dict[str, Any]:
     }
 
 
-def srgb_to_linear(texels: np.ndarray) -> np.ndarray:
-    """uint8 sRGB-encoded values decoded to linear ones (IEC 61966-2-1), uint8."""
-    c = texels.astype(np.float64) / 255.0
+def _srgb_table() -> np.ndarray:
+    """The linear value (uint8) of each uint8 sRGB-encoded one (IEC 61966-2-1)."""
+    c = np.arange(256, dtype=np.float64) / 255.0
     lin = np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
     return np.round(lin * 255.0).astype(np.uint8)
+
+
+_SRGB_LINEAR = _srgb_table()
+
+
+def srgb_to_linear(texels: np.ndarray) -> np.ndarray:
+    """uint8 sRGB-encoded values decoded to linear ones (IEC 61966-2-1), uint8: looked up,
+    not computed per texel (a LIBERO task's textures hold ~150 M)."""
+    return _SRGB_LINEAR[np.asarray(texels, np.uint8)]
 
 
 def area_resampled(texels: np.ndarray, height: int, width: int) -> np.ndarray:
@@ -221,9 +230,11 @@ def _mean_texel(model: mujoco.MjModel, tex: int) -> float:
     a, nch = int(model.tex_adr[tex]), int(model.tex_nchannel[tex])
     w, h = int(model.tex_width[tex]), int(model.tex_height[tex])
     texels = model.tex_data[a : a + w * h * nch].reshape(-1, nch)[:, : min(3, nch)]
+    table = np.arange(256, dtype=np.float64)  # each value's own, or its linear one
     if model.tex_colorspace[tex] == int(mujoco.mjtColorSpace.mjCOLORSPACE_SRGB):
-        texels = srgb_to_linear(texels)
-    return float(np.mean(texels)) / 255.0
+        table = _SRGB_LINEAR.astype(np.float64)
+    counts = np.bincount(texels.ravel(), minlength=256)  # the sum is exact: whole numbers
+    return float(counts @ table / texels.size) / 255.0
 
 
 # MuJoCo's `mjtCamLight` modes, as the ints `MjModel.light_mode` holds.

@@ -224,16 +224,18 @@ class LiberoMjx(Scene):
         if resolve_backend_name(backend) == "mjx":
             self.mjx_changes = for_mjx_jax(self.spec, MJX_CONTACTS_PER_CONDIM)
         meta = t.meta
-        # A copy compiled, not the spec itself: MuJoCo keeps a compiled spec's loaded meshes,
-        # and every later copy of it then takes ~20 ms per element deleted (the controller's
-        # robot-only spec deletes ~160: 3 s of a task's build with its cameras' meshes).
-        compiled = self.spec.copy().compile()
         # The reference pose backends park a diverged env at (and warp warms up from): the
         # first shipped initial state. The MJCF's own qpos0 piles the objects at the origin.
-        self.spec.add_key(name="reference", qpos=t.init_states[0][1 : 1 + compiled.nq])
+        self.spec.add_key(name="reference", qpos=t.init_states[0][1 : 1 + int(meta["nq"])])
+        # Compiled once, here and for the backend. A copy, not the spec itself: MuJoCo keeps
+        # a compiled spec's loaded meshes, and every later copy of it then takes ~20 ms per
+        # element deleted (the controller's robot-only spec deletes ~160).
+        compiled = self.spec.copy().compile()
+        if compiled.nq != meta["nq"]:
+            raise ValueError(f"LIBERO task {o.task}: nq {compiled.nq}, its export {meta['nq']}")
         self.goal = Goal.build(t.goal, compiled)
         self._joint_bodies = joint_bodies(self.goal, compiled)
-        self.backend = self._make_backend(backend, settings)
+        self.backend = self._make_backend(backend, settings, compiled)
         m = self.mj_model
         self.n_substeps = int(meta["n_substeps"])
         self.observed_substep = int(meta["observation_substep"])
@@ -257,9 +259,12 @@ class LiberoMjx(Scene):
         self._layout = {} if cameras else obs_slices(sizes)
         self._obs_sizes = sizes
 
-    def _make_backend(self, backend: str, settings: PhysicsSettings | None) -> PhysicsBackend:
-        """The physics of the task's model: the end effector and the goal's bodies, sites and
-        contacts read out, LIBERO's two cameras where `image_size` is set."""
+    def _make_backend(
+        self, backend: str, settings: PhysicsSettings | None, model: mujoco.MjModel
+    ) -> PhysicsBackend:
+        """The physics of the task's model (`model`: the spec compiled): the end effector and
+        the goal's bodies, sites and contacts read out, LIBERO's two cameras where
+        `image_size` is set."""
         meta, o = self.export.meta, self.options
         return make_backend(
             backend,
@@ -283,6 +288,7 @@ class LiberoMjx(Scene):
             ),
             1,  # the controller acts at every physics step; `step` runs them
             settings,
+            model,
         )
 
     def _index_robot(self, m: mujoco.MjModel) -> None:

@@ -230,11 +230,9 @@ def _mean_texel(model: mujoco.MjModel, tex: int) -> float:
     a, nch = int(model.tex_adr[tex]), int(model.tex_nchannel[tex])
     w, h = int(model.tex_width[tex]), int(model.tex_height[tex])
     texels = model.tex_data[a : a + w * h * nch].reshape(-1, nch)[:, : min(3, nch)]
-    table = np.arange(256, dtype=np.float64)  # each value's own, or its linear one
     if model.tex_colorspace[tex] == int(mujoco.mjtColorSpace.mjCOLORSPACE_SRGB):
-        table = _SRGB_LINEAR.astype(np.float64)
-    counts = np.bincount(texels.ravel(), minlength=256)  # the sum is exact: whole numbers
-    return float(counts @ table / texels.size) / 255.0
+        texels = srgb_to_linear(texels)
+    return float(np.mean(texels)) / 255.0
 
 
 # MuJoCo's `mjtCamLight` modes, as the ints `MjModel.light_mode` holds.

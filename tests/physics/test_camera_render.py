@@ -25,6 +25,7 @@ from openral_mjx.physics.warp_render import (
     render_model,
     srgb_to_linear,
     tracked_camera_pose,
+    weighted_resampled,
 )
 from openral_mjx.scenes import So101BoxOptions, make_scene
 from openral_mjx.scenes.so101_box import compose
@@ -347,6 +348,22 @@ def test_area_resampling_weights_each_texel_by_the_area_it_covers():
     (0 + 30 / 2) / 1.5 = 10 and (30 / 2 + 60) / 1.5 = 50; along the other axis, kept."""
     ramp = np.array([0, 30, 60], np.uint8).reshape(1, 3, 1).repeat(2, axis=0)
     np.testing.assert_array_equal(area_resampled(ramp, 2, 2)[..., 0], [[10, 50], [10, 50]])
+
+
+@pytest.mark.parametrize("shape", [(4096, 4096, 64, 64, 3), (256, 512, 2, 8, 4), (64, 64, 1, 1, 3)])
+def test_power_of_two_blocks_average_as_the_weights_do(shape):
+    """Blocks of 2^n texels are averaged by their sums: the same texels as the general
+    weights give, on random texels and on ones whose means end in exact halves (0 and 255:
+    rounded to even); a 2 x 2 block of 0, 255, 255, 0 is 127.5, so 128."""
+    h, w, height, width, c = shape
+    rng = np.random.default_rng(0)
+    for texels in (rng.integers(0, 256, (h, w, c)), rng.integers(0, 2, (h, w, c)) * 255):
+        texels = texels.astype(np.uint8)
+        np.testing.assert_array_equal(
+            area_resampled(texels, height, width), weighted_resampled(texels, height, width)
+        )
+    block = np.array([[0, 255], [255, 0]], np.uint8)[..., None]
+    assert area_resampled(block, 1, 1).item() == 128
 
 
 def test_prefilter_replaces_each_wide_texture_by_its_mipmap_level():

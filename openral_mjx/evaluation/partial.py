@@ -9,12 +9,14 @@ episodes per seed; timings add up).
 
 from __future__ import annotations
 
-import collections
 from collections.abc import Iterable, Mapping
+from typing import TypeVar
 
 from openral_mjx.core.interrupts import stop_reason
 from openral_mjx.report import EvalReport, PartialInfo
 from openral_mjx.report.sweep import SweepReport
+
+N = TypeVar("N", int, float)
 
 
 class Interrupted(KeyboardInterrupt):
@@ -31,18 +33,11 @@ def partial_info(signal: str, unit: str, finished: list[str], total: int) -> Par
     return PartialInfo(stop_reason(signal), unit, len(finished), total, finished)
 
 
-def add_warnings(counts: Iterable[Mapping[str, int]]) -> dict[str, int]:
-    """MuJoCo warning counts of several runs, added by kind."""
-    total: collections.Counter[str] = collections.Counter()
-    for c in counts:
-        total.update(c)
-    return dict(sorted(total.items()))
-
-
-def add_seconds(parts: Iterable[Mapping[str, float]]) -> dict[str, float]:
-    """Timings of several runs (e.g. their `build_s`), added by what they timed."""
-    total: dict[str, float] = {}
+def add_by_key(parts: Iterable[Mapping[str, N]]) -> dict[str, N]:
+    """Several runs' per-key figures (MuJoCo's warning counts by kind, `build_s` seconds by
+    what was built) added key by key, the keys sorted."""
+    total: dict[str, N] = {}
     for part in parts:
-        for what, seconds in part.items():
-            total[what] = total.get(what, 0.0) + seconds
-    return total
+        for key, value in part.items():
+            total[key] = total[key] + value if key in total else value
+    return dict(sorted(total.items()))

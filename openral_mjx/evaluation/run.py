@@ -17,7 +17,7 @@ from openral_mjx.core.errors import ConfigError
 from openral_mjx.core.interrupts import stop_reason, stop_signal
 from openral_mjx.core.options import to_dict
 from openral_mjx.evaluation.episodes import episode_results
-from openral_mjx.evaluation.partial import Interrupted, add_seconds, add_warnings
+from openral_mjx.evaluation.partial import Interrupted, add_by_key
 from openral_mjx.evaluation.provenance import device_description, package_versions
 from openral_mjx.evaluation.sequential import PairedRule, SequentialRule
 from openral_mjx.evaluation.spec import RunSpec
@@ -511,6 +511,6 @@ def _report(
         sequential=sequential,
         instruction=scene.instruction,
         partial=partial,
-        mujoco_warnings=add_warnings([warned, {} if resume is None else resume.mujoco_warnings]),
-        build_s=add_seconds([build_s or {}, {} if resume is None else resume.build_s]),
+        mujoco_warnings=add_by_key([warned, {} if resume is None else resume.mujoco_warnings]),
+        build_s=add_by_key([build_s or {}, {} if resume is None else resume.build_s]),
     )

@@ -41,7 +41,7 @@ from openral_mjx.core.errors import ConfigError, RunFailed
 from openral_mjx.core.interrupts import stop_signal
 from openral_mjx.evaluation import cluster
 from openral_mjx.evaluation.cluster import RayRun
-from openral_mjx.evaluation.partial import Interrupted, add_seconds, add_warnings, partial_info
+from openral_mjx.evaluation.partial import Interrupted, add_by_key, partial_info
 from openral_mjx.evaluation.run import build_spec_scene, evaluate_spec, policy_options, timed
 from openral_mjx.evaluation.spec import RunSpec
 from openral_mjx.policies import Policy, make_policy
@@ -220,13 +220,13 @@ def _task_report(
         if pol is None:
             with timed(build_s, "policy"):
                 pol = make_policy(policy, built)
-        keep = kept is not None and not pol.per_task
+        keep_in = None if pol.per_task else kept  # where it waits for the next task
         try:
             with evaluate_spec(built, pol, spec, on_chunk=on_chunk, build_s=build_s) as done:
                 return done.report
         finally:
-            if keep and kept is not None:
-                kept[policy] = pol
+            if keep_in is not None:
+                keep_in[policy] = pol
             else:
                 _close(pol)
 
@@ -485,8 +485,8 @@ def merge_reports(
         command=command,
         episodes=[e for r in reports for e in r.episodes],
         partial=partial,
-        mujoco_warnings=add_warnings(r.mujoco_warnings for r in reports),
-        build_s=add_seconds(r.build_s for r in reports),
+        mujoco_warnings=add_by_key(r.mujoco_warnings for r in reports),
+        build_s=add_by_key(r.build_s for r in reports),
     )
 
 

@@ -31,7 +31,7 @@ from openral_mjx.core.errors import ConfigError
 from openral_mjx.core.interrupts import stop_signal
 from openral_mjx.evaluation import cluster as ray_cluster
 from openral_mjx.evaluation.cluster import RayRun
-from openral_mjx.evaluation.partial import Interrupted, add_warnings, partial_info
+from openral_mjx.evaluation.partial import Interrupted, add_by_key, partial_info
 from openral_mjx.evaluation.provenance import device_description, package_versions
 from openral_mjx.evaluation.run import build_spec_scene, evaluate_spec
 from openral_mjx.evaluation.spec import RunSpec
@@ -325,5 +325,5 @@ def _sweep_report(
         created_at=dt.datetime.now(dt.UTC).isoformat(timespec="seconds"),
         versions=package_versions(),
         partial=partial,
-        mujoco_warnings=add_warnings(r.mujoco_warnings for r in [*earlier, *reports]),
+        mujoco_warnings=add_by_key(r.mujoco_warnings for r in [*earlier, *reports]),
     )

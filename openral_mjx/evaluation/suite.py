@@ -7,8 +7,10 @@ interval; its overall rate pools every episode, which is the average of the per-
 (every task runs the same number of episodes), with a Wilson interval over all of them.
 
 `task_processes` > 1 runs that many tasks at once, one process each (each process builds the
-policy once and keeps it for its next tasks, as a run in turn does). A task's episodes do not
-depend on which process ran it or beside what. On one GPU this pays only under NVIDIA's MPS
+policy once and keeps it for its next tasks, as a run in turn does), the tasks with the longest
+episodes first (`scenes.longest_first`: four LIBERO suites at once otherwise leave `libero_10`'s
+for last), reported in the suite's order. A task's episodes do not depend on which process ran
+it, when or beside what. On one GPU this pays only under NVIDIA's MPS
 daemon (`nvidia-cuda-mps-control -d`): without it the processes take turns on the GPU (8
 MetaWorld tasks at 1,000 envs: 0.94x one at a time; with MPS 2.6x, 16 tasks 3.6x;
 BENCHMARKS.md). A lerobot policy that samples per env from torch's global random state (not
@@ -48,7 +50,7 @@ from openral_mjx.policies import Policy, make_policy
 from openral_mjx.report import EvalReport, PartialInfo, PartPlacement
 from openral_mjx.runner.compile_cache import enable_compilation_cache
 from openral_mjx.runner.memory import share_devices
-from openral_mjx.scenes import scene_suite, suite_names
+from openral_mjx.scenes import longest_first, scene_suite, suite_names
 from openral_mjx.stats import wilson_interval
 
 MPS_PIPE_DEFAULT = "/tmp/nvidia-mps"
@@ -327,7 +329,10 @@ def _suite_in_processes(
     new pool of half as many processes, with a warning. One that dies running alone raises
     `RunFailed`. A task's episodes do not depend on its process, so a restart changes none."""
     start = time.perf_counter()
-    pool = _TaskPool(scene, policy, tasks, options or {}, spec, compile_cache, on_task, run_task)
+    order = longest_first(scene, tasks, spec.max_steps)
+    pool = _TaskPool(
+        scene, policy, tasks, order, options or {}, spec, compile_cache, on_task, run_task
+    )
     ended: dict[int, EvalReport] = {}
     processes = min(task_processes, len(tasks))
 
@@ -354,12 +359,14 @@ def _suite_in_processes(
 @dataclasses.dataclass(frozen=True)
 class _TaskPool:
     """What every pool of a suite's task processes runs: `run_task(scene, task, policy,
-    options, spec)` per task, in processes that cache compiled programs in `compile_cache`;
-    `on_task(done, total, task)` as each ends."""
+    options, spec)` per task, started in `order` (task indices: `longest_first`), in processes
+    that cache compiled programs in `compile_cache`; `on_task(done, total, task)` as each
+    ends."""
 
     scene: str
     policy: str
     tasks: list[str]
+    order: list[int]
     options: Mapping[str, Any]
     spec: RunSpec
     compile_cache: Path | None
@@ -382,12 +389,13 @@ class _TaskPool:
             initializer=_start_task_process,
             initargs=(self.compile_cache, processes),
         )
+        rank = {i: r for r, i in enumerate(self.order)}
         try:
             futures = {
                 pool.submit(
                     self.run_task, self.scene, self.tasks[i], self.policy, self.options, self.spec
                 ): i
-                for i in todo
+                for i in sorted(todo, key=rank.__getitem__)
             }
             workers = list(getattr(pool, "_processes", {}).values())  # all started by now
             for future in concurrent.futures.as_completed(futures):

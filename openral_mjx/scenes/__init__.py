@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -44,6 +44,9 @@ class SceneEntry:
     # the `warp` contact capacity per env its models need (None: `PhysicsSettings`'s), where
     # `--contacts-per-env` does not set one
     contacts_per_env: int | None = None
+    # each task's default episode length in control steps, where a scene's tasks differ in it
+    # (LIBERO's suites: 280 to 520): a pool of task processes starts the longest first
+    task_steps: Callable[[str], int] | None = None
 
     def __post_init__(self) -> None:
         if (self.suites is None) != (not self.suite_names):
@@ -159,6 +162,20 @@ def scene_suite(name: str, suite: str) -> list[str]:
     return tasks
 
 
+def longest_first(name: str, tasks: Sequence[str], max_steps: int | None = None) -> list[int]:
+    """The indices of scene `name`'s `tasks`, those with the longest episodes first (each
+    task's `SceneEntry.task_steps`, capped at `max_steps`), in their given order among equals.
+
+    A pool of processes that takes tasks in this order ends sooner: the longest tasks do not
+    come last, to run while the other processes idle (Graham's longest-processing-time rule,
+    within 4/3 of the best order). Every task keeps its own seeds, so no episode changes."""
+    steps = SCENES.get(name).task_steps
+    if steps is None:
+        return list(range(len(tasks)))
+    cap = max_steps if max_steps is not None else float("inf")
+    return sorted(range(len(tasks)), key=lambda i: -min(steps(tasks[i]), cap))
+
+
 def suite_names(suite: str) -> list[str]:
     """The suites a `--suite` value names (comma-separated), each stripped; an empty name is a
     `ConfigError`."""
@@ -222,6 +239,7 @@ __all__ = [
     "TabletopPushOptions",
     "check_robot",
     "check_task",
+    "longest_first",
     "make_scene",
     "mirrored",
     "resolve_scene_backend",

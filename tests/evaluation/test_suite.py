@@ -1,7 +1,9 @@
 """Suites: a task process keeps the policy it built for its next task (a lerobot checkpoint
 takes seconds to load), builds one bound to a task again, and its report times what it built
-(`build_s`); a run over several suites prints each suite's average."""
+(`build_s`); a pool of task processes starts the longest tasks first and reports in the
+suite's order; a run over several suites prints each suite's average."""
 
+import concurrent.futures
 import dataclasses
 
 import pytest
@@ -91,3 +93,32 @@ def test_several_suites_print_each_suites_average_and_the_whole_one():
     ]
     single = dataclasses.replace(report, task="libero_spatial", per_task=rows[:10])
     assert suite_module.format_tasks(single).splitlines()[-1] == "  average of 10 tasks: 50.0%"
+
+
+class _OneThread(concurrent.futures.ThreadPoolExecutor):
+    """A pool of one thread in place of the task processes (a process's initializer would set
+    this test process's memory share): it runs tasks in the order they are submitted."""
+
+    def __init__(self, max_workers, mp_context, initializer, initargs):
+        super().__init__(max_workers=1)
+
+
+def test_a_pool_starts_the_longest_tasks_first_and_reports_in_suite_order(monkeypatch):
+    """`libero_spatial,libero_10` in a pool: libero_10's tasks (520 steps) start before
+    libero_spatial's (280), while the report keeps the suite's order."""
+    one = evaluate("tabletop_push", "zero", n_envs=2, n_episodes=2, max_steps=1, backend="c")
+    tasks = scene_suite("libero_mjx", "libero_spatial,libero_10")
+    started: list[str] = []
+
+    def run_task(scene, task, policy, options, spec):
+        started.append(task)
+        return dataclasses.replace(one, task=task)
+
+    monkeypatch.setattr(suite_module.concurrent.futures, "ProcessPoolExecutor", _OneThread)
+    reports: list = []
+    spec = RunSpec(backend="c", n_envs=2, n_episodes=2)
+    suite_module._suite_in_processes(
+        "libero_mjx", "zero", tasks, {}, spec, 2, None, None, reports, run_task
+    )
+    assert started == tasks[10:] + tasks[:10]
+    assert [r.task for r in reports] == tasks

@@ -142,3 +142,24 @@ def test_several_suites_run_as_one_in_the_order_named():
         scene_suite("libero", "libero_10,")
     with pytest.raises(ConfigError, match=r"unknown LIBERO suite 'libero_100'.*libero_10"):
         scene_suite("libero", "libero_10,libero_100")
+
+
+def test_a_pool_starts_the_longest_episodes_first():
+    """Four LIBERO suites in one pool of task processes, in the order named, left
+    `libero_10`'s 520-step episodes for last while most processes idled. `longest_first`
+    orders them by each task's episode limit (lerobot's per suite), the named order among
+    equals; a cap on every episode (`--max-steps`) or a scene whose tasks do not say keeps
+    the named order. The episode limits are the ones the scenes run."""
+    from openral_mjx.benchmarks.libero.mirror.options import LiberoMjxOptions
+    from openral_mjx.scenes import longest_first, scene_suite
+
+    tasks = scene_suite("libero_mjx", "libero_spatial,libero_goal,libero_10")
+    order = [tasks[i] for i in longest_first("libero_mjx", tasks)]
+    assert order == tasks[20:] + tasks[10:20] + tasks[:10]
+    assert [LiberoMjxOptions(task=t).episode_limit for t in order] == [520] * 10 + [300] * 10 + [
+        280
+    ] * 10
+    assert longest_first("libero_mjx", tasks, max_steps=280) == list(range(30))
+    assert longest_first("libero_mjx", tasks, max_steps=290) == [*range(10, 30), *range(10)]
+    mt = scene_suite("metaworld_mjx", "mt10")
+    assert longest_first("metaworld_mjx", mt) == list(range(len(mt)))

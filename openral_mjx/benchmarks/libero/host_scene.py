@@ -69,6 +69,11 @@ def suite_tasks(suite: str) -> list[str]:
     return [f"{suite}/{i}" for i in range(SUITES[suite][0])]
 
 
+def task_steps(task: str) -> int:
+    """The episode limit of ``suite/index``: its suite's (lerobot's)."""
+    return SUITES[parse_task(task)[0]][1]
+
+
 def instruction(task: str) -> str:
     """LIBERO's language instruction of ``suite/index`` (see `instructions`)."""
     suite, index = parse_task(task)
@@ -104,7 +109,6 @@ class LiberoOptions(HostOptions):
 
 def libero(options: LiberoOptions, **_: object) -> HostScene:
     o = options
-    suite, _ = parse_task(o.task)
     size = o.image_size
     observation = {
         "image": ((size, size, 3), "uint8"),
@@ -120,7 +124,7 @@ def libero(options: LiberoOptions, **_: object) -> HostScene:
         "openral_mjx.benchmarks.libero.worker_env:LiberoEnv",
         {"task": o.task, "image_size": size, "expert": o.expert},
         observation,
-        o.max_steps or SUITES[suite][1],
+        o.max_steps or task_steps(o.task),
         o.gl,
         n_init_states=init_state_count(o.protocol, o.sampled_states),
         reset_options={"sampled": True} if o.protocol == "sampled" else {},
@@ -140,4 +144,5 @@ SCENE = SceneEntry(
     suite_names=tuple(SUITES),
     expert="libero-expert",
     seed_options=("protocol", "sampled_states"),
+    task_steps=task_steps,
 )

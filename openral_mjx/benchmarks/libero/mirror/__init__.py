@@ -28,6 +28,7 @@ SCENE = SceneEntry(
     mirrors="libero",
     seed_options=host_scene.SCENE.seed_options,
     contacts_per_env=CONTACTS_PER_ENV,
+    task_steps=host_scene.task_steps,
 )
 
 __all__ = ["SCENE", "LiberoMjx", "LiberoMjxOptions"]

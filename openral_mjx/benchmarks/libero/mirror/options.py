@@ -6,9 +6,9 @@ import dataclasses
 
 from openral_mjx.benchmarks.libero.host_scene import (
     SAMPLED_STATES,
-    SUITES,
     check_protocol,
     parse_task,
+    task_steps,
 )
 from openral_mjx.core.options import check
 
@@ -55,4 +55,4 @@ class LiberoMjxOptions:
 
     @property
     def episode_limit(self) -> int:
-        return self.max_steps or SUITES[parse_task(self.task)[0]][1]
+        return self.max_steps or task_steps(self.task)

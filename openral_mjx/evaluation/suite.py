@@ -49,6 +49,7 @@ from openral_mjx.evaluation.spec import RunSpec
 from openral_mjx.policies import Policy, make_policy
 from openral_mjx.report import EvalReport, PartialInfo, PartPlacement
 from openral_mjx.runner.compile_cache import enable_compilation_cache
+from openral_mjx.runner.cuda_wait import block_while_waiting
 from openral_mjx.runner.memory import share_devices
 from openral_mjx.scenes import longest_first, scene_suite, suite_names
 from openral_mjx.stats import wilson_interval
@@ -193,10 +194,13 @@ _PROCESS_POLICIES: dict[str, Policy] = {}
 
 def _start_task_process(compile_cache: Path | None, processes: int = 1) -> None:
     """A task process, one of `processes` at once: allocate GPU memory as needed (they share
-    the GPU), not 75% of it up front, size batches for its share of the memory, and cache
-    compiled programs where the parent does. The policy it keeps is closed as it ends."""
+    the GPU), not 75% of it up front, size batches for its share of the memory, wait for the
+    GPU without spinning a core the others need (`runner.cuda_wait`), and cache compiled
+    programs where the parent does. The policy it keeps is closed as it ends."""
     os.environ["XLA_PYTHON_CLIENT_PREALLOCATE"] = "false"
     share_devices(processes)
+    if processes > 1:
+        block_while_waiting()
     if compile_cache is not None:
         enable_compilation_cache(compile_cache)
     multiprocessing.util.Finalize(None, _close_kept, (_PROCESS_POLICIES,), exitpriority=10)

@@ -137,10 +137,13 @@ def fan_out(
     parts: Sequence[tuple[str, tuple]],
     resources: dict[str, float],
     *,
+    order: Sequence[int] | None = None,
     max_attempts: int = MAX_ATTEMPTS,
 ) -> Iterator[tuple[int, R, PartPlacement]]:
     """Run `fn(*args)` for each `(name, args)` of `parts` as a Ray task asking `resources`,
-    spread over the nodes; yield `(index, result, placement)` as each ends, in any order.
+    spread over the nodes, submitted in `order` (part indices; default: as given), which Ray
+    follows as resources free up; yield `(index, result, placement)` as each ends, in any
+    order.
 
     A part whose worker or node died (`WorkerCrashedError`, `NodeDiedError`, a lost result,
     Ray's out-of-memory kill) is started again, at most `max_attempts` times in all; an error
@@ -154,7 +157,8 @@ def fan_out(
     )
     remote = ray.remote(max_retries=0, scheduling_strategy="SPREAD", **resources)(_run_part)
     attempts = [1] * len(parts)
-    pending = {remote.remote(fn, args): i for i, (_, args) in enumerate(parts)}
+    indices = range(len(parts)) if order is None else order
+    pending = {remote.remote(fn, parts[i][1]): i for i in indices}
     try:
         while pending:
             done, _ = ray.wait(list(pending), num_returns=1, timeout=WAIT_S)

@@ -284,7 +284,8 @@ def _suite_on_cluster(
         cache = compile_cache is not None
         parts = [(t, (scene, t, policy, dict(options or {}), spec, cache)) for t in tasks]
         ended: dict[int, tuple[EvalReport, PartPlacement]] = {}
-        runs = cluster.fan_out(ray, cluster_task_report, parts, resources)
+        order = longest_first(scene, tasks, spec.max_steps)  # as a pool of processes
+        runs = cluster.fan_out(ray, cluster_task_report, parts, resources, order=order)
         with contextlib.closing(runs):  # an interrupt cancels the running tasks
             for i, report, placement in runs:
                 ended[i] = (report, placement)

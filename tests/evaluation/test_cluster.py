@@ -91,6 +91,64 @@ def test_a_sweep_on_a_cluster_takes_its_policy_by_name():
 
 
 @pytest.mark.cluster  # needs Ray, which the default tier does not install
+class _Lost(Exception):
+    pass
+
+
+class _FakeRay:
+    """What `cluster.fan_out` uses of Ray: tasks run when `get` asks, `wait` returns the
+    earliest submitted, as Ray starts queued tasks while resources free up."""
+
+    exceptions = type(
+        "exceptions",
+        (),
+        {
+            "WorkerCrashedError": _Lost,
+            "NodeDiedError": _Lost,
+            "ObjectLostError": _Lost,
+            "OutOfMemoryError": _Lost,
+            "RayTaskError": RuntimeError,
+        },
+    )
+
+    def __init__(self) -> None:
+        self.submitted: list[tuple] = []
+
+    def remote(self, **options):
+        def wrap(run):
+            def submit(fn, args):
+                self.submitted.append(args)
+                return (fn, args)
+
+            return type("Remote", (), {"remote": staticmethod(submit)})
+
+        return wrap
+
+    def wait(self, refs, num_returns, timeout):
+        return refs[:num_returns], refs[num_returns:]
+
+    def get(self, ref):
+        fn, args = ref
+        return fn(*args), "node", "127.0.0.1"
+
+    def cancel(self, ref, force):
+        pass
+
+
+def test_parts_go_to_the_cluster_in_the_order_asked():
+    """A suite's tasks on a cluster are submitted longest first, as a pool of processes takes
+    them: `fan_out` submits in `order` and yields each part under its own index."""
+    ray = _FakeRay()
+    parts = [(name, (name,)) for name in ("a", "bb", "ccc")]
+    runs = list(cluster.fan_out(ray, len, parts, {}, order=[2, 0, 1]))
+    assert ray.submitted == [("ccc",), ("a",), ("bb",)]
+    assert [(i, n) for i, n, _ in runs] == [(2, 3), (0, 1), (1, 2)]
+    assert [p.part for _, _, p in runs] == ["ccc", "a", "bb"]
+    ray = _FakeRay()
+    list(cluster.fan_out(ray, len, parts, {}))
+    assert ray.submitted == [("a",), ("bb",), ("ccc",)]
+
+
 def test_unreachable_cluster_is_refused_at_once():
     require_ray()
     with socket.socket() as s:  # a port nobody listens on

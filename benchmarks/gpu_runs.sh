@@ -340,6 +340,23 @@ json.dump(d, open(sys.argv[2], 'w'), indent=1)" "/tmp/libero_act_$s.json" "$out/
           --scene libero_mjx --task "$t" --backend warp --n-envs 50 --policy lerobot:/tmp/act_libero)
       done
     done ;;
+  libero-task-profile)  # issue 42: where one task process's time and CPU go (ACT on two IMAGE
+                        # px cameras, TASK at 50 envs): benchmarks/profile_eval.py twice (cold,
+                        # then with JAX's cache warm), each with PROCS-1 copies of the same run
+                        # beside it (default 1: alone) to load the CPU as a pool would
+    [ -d /tmp/act_libero ] || python3 benchmarks/libero_act_policy.py --out /tmp/act_libero \
+      --size "${IMAGE:-128}" | tail -1
+    t=${TASK:-libero_object/0}
+    args=(--scene libero_mjx --task "$t" --backend warp --n-envs 50 --policy lerobot:/tmp/act_libero
+          --opt "image_size=${IMAGE:-128}" --no-breakdown)
+    for run in cold warm; do
+      for i in $(seq 2 "${PROCS:-1}"); do
+        python3 -m openral_mjx.eval "${args[@]}" --out "/tmp/beside_$i.json" > /dev/null 2>&1 &
+      done
+      python3 benchmarks/profile_eval.py --prof-out "$out/task_profile_$run.pstats" -- "${args[@]}" \
+        --out "$out/task_profile_$run.json" > "$out/task_profile_$run.txt" 2>&1
+      wait; head -40 "$out/task_profile_$run.txt" | grep -v "^  *[0-9]* *[0-9.]* *[0-9.]* *[0-9.]"
+    done ;;
   libero-mass)  # issue 42: the mass-seed protocol (--opt protocol=sampled) on TASKS (default
                 # libero_object/0), N seeds at once (default 1,024), per POLICIES (default
                 # "act expert"): act, the random-weight ACT on two IMAGE px cameras; mlp, a

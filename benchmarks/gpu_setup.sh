@@ -68,4 +68,30 @@ if [ -d .gpumw ] && [ ! -f /tmp/mwsite/.done ]; then
       > /tmp/mwpython && chmod +x /tmp/mwpython && touch /tmp/mwsite/.done
 fi
 [ -f /tmp/mwsite/.done ] && export OPENRAL_MJX_PYTHON_METAWORLD=/tmp/mwpython
+# LIBERO itself (hf-libero 0.1.4, robosuite 1.4.0, mujoco 3.8.1; assets pruned to the four
+# suites' tasks) for the `libero` host scene, in place of the lerobot-libero worker environment:
+# carry .lh1, .lh2, ... (benchmarks/libero_host_parts.sh), one or more a call. Each call's parts
+# wait in /tmp/lh-parts until all that MANIFEST lists are there and match, then unpack to
+# /tmp/lhsite; /tmp/lhpython (python3 with /tmp/lhsite first, then the project root) becomes
+# the worker environment's interpreter. LIBERO's config (default paths, assets in the pruned
+# tree: no prompt, no download) is written once here by the workers' own `configure`
+# (openral_mjx/benchmarks/libero/worker_env.py), before a pool of new workers would race to
+# write it. LH_SITE, LH_PARTS, LH_PYTHON and LH_PY3 (the interpreter) change the paths, for a
+# local check.
+LH_SITE=${LH_SITE:-/tmp/lhsite} LH_PARTS=${LH_PARTS:-/tmp/lh-parts} LH_PYTHON=${LH_PYTHON:-/tmp/lhpython}
+for d in .lh[0-9]*; do
+  [ -d "$d" ] || continue
+  mkdir -p "$LH_PARTS" && cp "$d"/* "$LH_PARTS/"
+done
+if [ -f "$LH_PARTS/MANIFEST" ] && [ ! -f "$LH_SITE/.done" ] \
+   && (cd "$LH_PARTS" && sha256sum --status -c MANIFEST 2> /dev/null); then
+  mkdir -p "$LH_SITE" && (cd "$LH_PARTS" && awk '{print $2}' MANIFEST | xargs cat) \
+      | tar xJf - -C "$LH_SITE" \
+    && printf '#!/bin/sh\nexport PYTHONPATH=%s${PYTHONPATH:+:$PYTHONPATH}:%s\nexec %s "$@"\n' \
+      "$LH_SITE" "$PWD" "${LH_PY3:-python3}" > "$LH_PYTHON" && chmod +x "$LH_PYTHON" \
+    && PYTHONPATH='' "$LH_PYTHON" -c \
+      'from openral_mjx.benchmarks.libero.worker_env import configure; configure()' \
+    && touch "$LH_SITE/.done"
+fi
+[ -f "$LH_SITE/.done" ] && export OPENRAL_MJX_PYTHON_LEROBOT_LIBERO=$LH_PYTHON
 set +e

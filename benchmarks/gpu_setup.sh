@@ -78,6 +78,12 @@ fi
 # (openral_mjx/benchmarks/libero/worker_env.py), before a pool of new workers would race to
 # write it. LH_SITE, LH_PARTS, LH_PYTHON and LH_PY3 (the interpreter) change the paths, for a
 # local check.
+# The workers render through EGL, and the image has no libEGL.so.1 (2026-11-29): carry .gl, the
+# glvnd loader's Debian packages (libegl1 libglvnd0 libopengl0 libgl1 libglx0 libgles2, fetched
+# with `apt-get download`), unpacked into / where NVIDIA's EGL vendor file already is.
+if [ -d .gl ] && ! ldconfig -p | grep -q libEGL.so.1; then
+  for f in .gl/*.deb; do dpkg -x "$f" /; done && ldconfig
+fi
 LH_SITE=${LH_SITE:-/tmp/lhsite} LH_PARTS=${LH_PARTS:-/tmp/lh-parts} LH_PYTHON=${LH_PYTHON:-/tmp/lhpython}
 for d in .lh[0-9]*; do
   [ -d "$d" ] || continue

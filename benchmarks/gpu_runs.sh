@@ -15,6 +15,20 @@ mps_start() { [ "${MPS:-0}" = 1 ] || return 0
   mkdir -p /tmp/mps-pipe /tmp/mps-log && { nvidia-cuda-mps-control -d 2>/dev/null \
     || [ -e /tmp/mps-pipe/control ]; }; }
 mps_stop() { [ "${MPS:-0}" = 1 ] && echo quit | nvidia-cuda-mps-control; return 0; }
+# libero_policy P: $policy and $opts (scene options) for P: act (the random-weight ACT on two
+# IMAGE px cameras, made once), mlp (a random-weight JAX MLP on the 8-D state), expert
+libero_policy() {
+  case $1 in
+    act) [ -d /tmp/act_libero ] || python3 benchmarks/libero_act_policy.py \
+           --out /tmp/act_libero --size "${IMAGE:-128}" | tail -1
+         policy=lerobot:/tmp/act_libero; opts=() ;;
+    mlp) [ -d /tmp/mlp_libero ] || python3 benchmarks/libero_mlp_policy.py \
+           --out /tmp/mlp_libero | tail -1
+         policy=mlp:/tmp/mlp_libero; opts=(expert=false) ;;
+    expert) policy=libero-expert; opts=() ;;
+    *) echo "unknown policy $1 (act, mlp, expert)"; return 2 ;;
+  esac
+}
 mw_tasks() { python3 -c "from openral_mjx.scenes import scene_suite as s; print(*s('metaworld_mjx', '${SUITE:-mt10}'))"; }
 case ${1:?stage} in
   mw-mirror)   # issue 20: MetaWorld mirror, SUITE (mt10) or TASKS x 1,000 seeds, JAX MLP in the loop
@@ -366,18 +380,25 @@ json.dump(d, open(sys.argv[2], 'w'), indent=1)" "/tmp/libero_act_$s.json" "$out/
     for t in ${TASKS:-${TASK:-libero_object/0}}; do
       tag=$(echo "$t" | tr / _)
       for p in ${POLICIES:-act expert}; do
-        case $p in
-          act) [ -d /tmp/act_libero ] || python3 benchmarks/libero_act_policy.py \
-                 --out /tmp/act_libero --size "${IMAGE:-128}" | tail -1
-               policy=lerobot:/tmp/act_libero; opts=() ;;
-          mlp) [ -d /tmp/mlp_libero ] || python3 benchmarks/libero_mlp_policy.py \
-                 --out /tmp/mlp_libero | tail -1
-               policy=mlp:/tmp/mlp_libero; opts=(expert=false) ;;
-          expert) policy=libero-expert; opts=() ;;
-          *) echo "unknown policy $p (act, mlp, expert)"; exit 2 ;;
-        esac
+        libero_policy "$p" || exit 2
         ev "libero_mass_${p}_${tag}_$n" --scene libero_mjx --task "$t" --backend warp \
           --n-envs "$n" --policy "$policy" --opt protocol=sampled "sampled_states=$n" "${opts[@]}"
+      done
+    done ;;
+  libero-host)  # issue 42: the baseline of libero-mass, LIBERO itself through the host adapter
+                # on this machine's cores (one env worker per core; after gpu_setup.sh with
+                # .lh1-.lh3, .gl and .libero_models carried), the same TASKS, POLICIES and
+                # drawn states, HOST_N seeds (default 64) from seed 0, cameras as the policy
+                # needs (IMAGE px for act, 8 px otherwise)
+    k=$(nproc)
+    for t in ${TASKS:-${TASK:-libero_object/0}}; do
+      tag=$(echo "$t" | tr / _)
+      for p in ${POLICIES:-act expert}; do
+        libero_policy "$p" || exit 2
+        [ "$p" = act ] && size=${IMAGE:-128} || size=8
+        MUJOCO_GL=egl ev "libero_host_${p}_${tag}_${HOST_N:-64}" --scene libero --task "$t" \
+          --n-envs "$k" --n-episodes "${HOST_N:-64}" --policy "$policy" --opt protocol=sampled \
+          "sampled_states=${N:-1024}" "n_workers=$k" "image_size=$size" "${opts[@]}"
       done
     done ;;
   cluster-scaling)  # issue 39: SUITE (mt10) over Ray vs --task-processes on this machine's GPUs,

@@ -90,7 +90,6 @@ def test_a_sweep_on_a_cluster_takes_its_policy_by_name():
         run_sweep(scene, make_policy("scripted", scene), SWEEP, RunSpec(), cluster=on_ray)
 
 
-@pytest.mark.cluster  # needs Ray, which the default tier does not install
 class _Lost(Exception):
     pass
 
@@ -149,6 +148,7 @@ def test_parts_go_to_the_cluster_in_the_order_asked():
     assert ray.submitted == [("a",), ("bb",), ("ccc",)]
 
 
+@pytest.mark.cluster  # needs Ray, which the default tier does not install
 def test_unreachable_cluster_is_refused_at_once():
     require_ray()
     with socket.socket() as s:  # a port nobody listens on

@@ -358,10 +358,9 @@ json.dump(d, open(sys.argv[2], 'w'), indent=1)" "/tmp/libero_act_$s.json" "$out/
                         # px cameras, TASK at 50 envs): benchmarks/profile_eval.py twice (cold,
                         # then with JAX's cache warm), each with PROCS-1 copies of the same run
                         # beside it (default 1: alone) to load the CPU as a pool would
-    [ -d /tmp/act_libero ] || python3 benchmarks/libero_act_policy.py --out /tmp/act_libero \
-      --size "${IMAGE:-128}" | tail -1
+    libero_policy act || exit 2
     t=${TASK:-libero_object/0}
-    args=(--scene libero_mjx --task "$t" --backend warp --n-envs 50 --policy lerobot:/tmp/act_libero
+    args=(--scene libero_mjx --task "$t" --backend warp --n-envs 50 --policy "$policy"
           --opt "image_size=${IMAGE:-128}" --no-breakdown)
     for run in cold warm; do
       for i in $(seq 2 "${PROCS:-1}"); do

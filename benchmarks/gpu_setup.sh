@@ -68,6 +68,13 @@ if [ -d .gpumw ] && [ ! -f /tmp/mwsite/.done ]; then
       > /tmp/mwpython && chmod +x /tmp/mwpython && touch /tmp/mwsite/.done
 fi
 [ -f /tmp/mwsite/.done ] && export OPENRAL_MJX_PYTHON_METAWORLD=/tmp/mwpython
+# LIBERO's workers (below) render through EGL, and the image has no libEGL.so.1 (2026-11-29):
+# carry .gl, the glvnd loader's Debian packages (libegl1 libglvnd0 libopengl0 libgl1 libglx0
+# libgles2, fetched with `apt-get download`), unpacked into / where NVIDIA's EGL vendor file
+# already is.
+if [ -d .gl ] && ! ldconfig -p | grep -q libEGL.so.1; then
+  for f in .gl/*.deb; do dpkg -x "$f" /; done && ldconfig
+fi
 # LIBERO itself (hf-libero 0.1.4, robosuite 1.4.0, mujoco 3.8.1; assets pruned to the four
 # suites' tasks) for the `libero` host scene, in place of the lerobot-libero worker environment:
 # carry .lh1, .lh2, ... (benchmarks/libero_host_parts.sh), one or more a call. Each call's parts
@@ -78,12 +85,6 @@ fi
 # (openral_mjx/benchmarks/libero/worker_env.py), before a pool of new workers would race to
 # write it. LH_SITE, LH_PARTS, LH_PYTHON and LH_PY3 (the interpreter) change the paths, for a
 # local check.
-# The workers render through EGL, and the image has no libEGL.so.1 (2026-11-29): carry .gl, the
-# glvnd loader's Debian packages (libegl1 libglvnd0 libopengl0 libgl1 libglx0 libgles2, fetched
-# with `apt-get download`), unpacked into / where NVIDIA's EGL vendor file already is.
-if [ -d .gl ] && ! ldconfig -p | grep -q libEGL.so.1; then
-  for f in .gl/*.deb; do dpkg -x "$f" /; done && ldconfig
-fi
 LH_SITE=${LH_SITE:-/tmp/lhsite} LH_PARTS=${LH_PARTS:-/tmp/lh-parts} LH_PYTHON=${LH_PYTHON:-/tmp/lhpython}
 for d in .lh[0-9]*; do
   [ -d "$d" ] || continue

@@ -334,10 +334,7 @@ def _suite_in_processes(
     new pool of half as many processes, with a warning. One that dies running alone raises
     `RunFailed`. A task's episodes do not depend on its process, so a restart changes none."""
     start = time.perf_counter()
-    order = longest_first(scene, tasks, spec.max_steps)
-    pool = _TaskPool(
-        scene, policy, tasks, order, options or {}, spec, compile_cache, on_task, run_task
-    )
+    pool = _TaskPool(scene, policy, tasks, options or {}, spec, compile_cache, on_task, run_task)
     ended: dict[int, EvalReport] = {}
     processes = min(task_processes, len(tasks))
 
@@ -364,14 +361,12 @@ def _suite_in_processes(
 @dataclasses.dataclass(frozen=True)
 class _TaskPool:
     """What every pool of a suite's task processes runs: `run_task(scene, task, policy,
-    options, spec)` per task, started in `order` (task indices: `longest_first`), in processes
-    that cache compiled programs in `compile_cache`; `on_task(done, total, task)` as each
-    ends."""
+    options, spec)` per task, the longest first (`longest_first`), in processes that cache
+    compiled programs in `compile_cache`; `on_task(done, total, task)` as each ends."""
 
     scene: str
     policy: str
     tasks: list[str]
-    order: list[int]
     options: Mapping[str, Any]
     spec: RunSpec
     compile_cache: Path | None
@@ -394,7 +389,8 @@ class _TaskPool:
             initializer=_start_task_process,
             initargs=(self.compile_cache, processes),
         )
-        rank = {i: r for r, i in enumerate(self.order)}
+        order = longest_first(self.scene, self.tasks, self.spec.max_steps)
+        rank = {i: r for r, i in enumerate(order)}
         try:
             futures = {
                 pool.submit(

@@ -388,13 +388,14 @@ json.dump(d, open(sys.argv[2], 'w'), indent=1)" "/tmp/libero_act_$s.json" "$out/
                 # on this machine's cores (one env worker per core; after gpu_setup.sh with
                 # .lh1-.lh3, .gl and .libero_models carried), the same TASKS, POLICIES and
                 # drawn states, HOST_N seeds (default 64) from seed 0, cameras as the policy
-                # needs (IMAGE px for act, 8 px otherwise)
+                # needs (IMAGE px for act; none otherwise, LIBERO rendering nothing, as the
+                # mirror without cameras)
     k=$(nproc)
     for t in ${TASKS:-${TASK:-libero_object/0}}; do
       tag=$(echo "$t" | tr / _)
       for p in ${POLICIES:-act expert}; do
         libero_policy "$p" || exit 2
-        [ "$p" = act ] && size=${IMAGE:-128} || size=8
+        [ "$p" = act ] && size=${IMAGE:-128} || size=null
         MUJOCO_GL=egl ev "libero_host_${p}_${tag}_${HOST_N:-64}" --scene libero --task "$t" \
           --n-envs "$k" --n-episodes "${HOST_N:-64}" --policy "$policy" --opt protocol=sampled \
           "sampled_states=${N:-1024}" "n_workers=$k" "image_size=$size" "${opts[@]}"

@@ -5,8 +5,9 @@
 one control step of N envs is one call into `EnvBatch`, which steps the N envs in worker
 processes (see `openral_mjx.host.batch`). The simulator's state lives in the workers, keyed by
 env slot (the env's position in the batch); the JAX state carries the slot, the observation
-(a dict of fixed-shape arrays), reward, done, success and an error code. Every chunk of the
-runner starts with a reset of all slots, so workers started once serve every chunk.
+(a dict of fixed-shape arrays, or with `HostSceneSpec.flat_obs` their concatenation), reward,
+done, success and an error code. Every chunk of the runner starts with a reset of all slots, so
+workers started once serve every chunk.
 
 Determinism: seed s reaches the env as its reset seed (drawn from the episode's reset key) and,
 for simulators with a fixed list of initial states, as init state ``s mod n_init_states``; a
@@ -57,6 +58,9 @@ class HostSceneSpec:
         reset_draw_option: that option's name.
         instruction: the task in natural language (see `Scene.instruction`; empty: the
             fallback from the task name).
+        flat_obs: observe one flat float32 vector, the observation's entries (all 1-D)
+            concatenated in their order, as a mirror without cameras does: then policies that
+            need a flat vector (mlp) run on the host scene too.
     """
 
     name: str
@@ -72,6 +76,11 @@ class HostSceneSpec:
     instruction: str = ""
     reset_draw: Callable[[jax.Array], jax.Array] | None = None
     reset_draw_option: str = "rand_vec"
+    flat_obs: bool = False
+
+    def __post_init__(self) -> None:
+        if self.flat_obs and any(len(s) != 1 for s, _ in self.batch.observation.values()):
+            raise ValueError(f"flat_obs needs 1-D entries, not {self.batch.observation}")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -211,11 +220,20 @@ class HostScene(Scene):
 
     @property
     def obs_layout(self) -> dict[str, tuple[int, int]]:
-        return {}
+        """The flat observation's slices (`HostSceneSpec.flat_obs`); none for a dict."""
+        if not self.host_spec.flat_obs:
+            return {}
+        layout, start = {}, 0
+        for name, (shape, _) in self.host_spec.batch.observation.items():
+            layout[name] = (start, shape[0])
+            start += shape[0]
+        return layout
 
     @property
     def observation_size(self) -> int:
-        """Host scenes observe a dict of arrays, not one flat vector."""
+        """The flat vector's size; a ConfigError where the scene observes a dict of arrays."""
+        if self.host_spec.flat_obs:
+            return sum(size for _, size in self.obs_layout.values())
         raise ConfigError(
             f"scene {self.name!r} observes a dict of arrays "
             f"({', '.join(self.host_spec.batch.observation)}), not one flat vector: policies "
@@ -296,9 +314,12 @@ class HostScene(Scene):
             success = success | prev.metrics["success"]
             diverged = diverged | prev.metrics["diverged"]
             done = done | prev.done
+        obs = out["obs"]
+        if self.host_spec.flat_obs:
+            obs = jnp.concatenate([obs[k].astype(jnp.float32) for k in self.obs_layout], -1)
         return State(
             physics=None,
-            obs=out["obs"],
+            obs=obs,
             reward=out["reward"],
             done=done,
             metrics={"success": success, "diverged": diverged, "error": error},

@@ -21,6 +21,7 @@ from openral_mjx.host.batch import BatchConfig, EnvBatch
 from openral_mjx.host.point_reach import IMAGE, TARGETS, PointReachEnv
 from openral_mjx.host.pool import RemoteError, Worker
 from openral_mjx.policies import make_policy
+from openral_mjx.policies.mlp import MlpConfig, init_params, mlp_policy
 from openral_mjx.runner import EpisodeRunner, compile_cache, export_cache, run_seeds
 from openral_mjx.scenes import make_scene
 from openral_mjx.scenes.host_scene import HostScene
@@ -106,6 +107,48 @@ def test_a_vector_drawn_from_the_reset_key_reaches_the_envs_reset(reach):
         scene.close()
     np.testing.assert_array_equal(state.obs["state"][:, 2:], jax.vmap(draw)(keys))
     np.testing.assert_array_equal(one.obs["state"][0], state.obs["state"][3])
+
+
+def test_a_flat_observation_is_its_entries_concatenated(reach):
+    """`HostSceneSpec.flat_obs` (a host scene without cameras, as a mirror without them): one
+    float32 vector, the declared entries in order, laid out by `obs_layout`; an MLP, which
+    needs a flat vector, runs on it and acts on the env's state."""
+    batch = dataclasses.replace(reach.host_spec.batch, observation={"state": ((4,), "float32")})
+    spec = dataclasses.replace(reach.host_spec, batch=batch, flat_obs=True)
+    flat = HostScene(spec, reach.options, reach.env_name, reach.batch.config.python)
+    seeds = jnp.arange(3, dtype=jnp.int32)
+    keys = jax.vmap(lambda s: jax.random.split(jax.random.PRNGKey(s))[0])(seeds)
+    config = MlpConfig(obs_size=4, action_size=2, action_offset=(0.0,) * 2, action_scale=(1.0,) * 2)
+    try:
+        got = jax.vmap(flat.reset_with_seed)(seeds, keys)
+        want = jax.vmap(reach.reset_with_seed)(seeds, keys)
+        params = init_params(config, jax.random.PRNGKey(0))
+        policy = mlp_policy(config)
+        out = run_seeds(
+            flat,
+            policy,
+            params,
+            seeds=np.arange(3),
+            n_envs=3,
+            max_steps=STEPS,
+            record=("actions",),
+        )[0]
+    finally:
+        flat.close()
+    assert flat.obs_layout == {"state": (0, 4)} and flat.observation_size == 4
+    assert got.obs.dtype == jnp.float32
+    np.testing.assert_array_equal(got.obs, want.obs["state"])
+    assert (out["steps"] > 0).all() and (out["info/error"] == 0).all()
+    first = jax.vmap(lambda o: policy.act(params, None, o, keys[0])[0])(got.obs)
+    np.testing.assert_allclose(out["actions"][:, 0], first, rtol=1e-6)  # from the state
+    with pytest.raises(ValueError, match="1-D"):
+        dataclasses.replace(reach.host_spec, flat_obs=True)  # its image is not a vector
+
+
+def test_a_dict_observation_is_no_flat_vector(reach):
+    with pytest.raises(ConfigError, match="not one flat vector"):
+        _ = reach.observation_size
+    assert reach.obs_layout == {}
 
 
 def test_finished_envs_are_not_stepped():

@@ -16,6 +16,7 @@ from openral_mjx.host import envs
 from openral_mjx.host.batch import BatchConfig, EnvBatch
 from openral_mjx.host.pool import Worker, _shim_dir
 from openral_mjx.report import load_report
+from openral_mjx.scenes import make_scene
 
 ENV = "lerobot-libero"
 require_worker_envs(ENV)
@@ -161,6 +162,33 @@ def test_batch_matches_the_env_stepped_directly(
                 np.testing.assert_array_equal(got["obs"][key][i], want[key], err_msg=f"{key} {t}")
     first = trace[0]["obs"]
     assert not np.array_equal(first["state"][0], first["state"][1])  # different episodes
+
+
+def test_libero_without_cameras_is_the_same_episode(python, tmp_path):
+    """``image_size=None`` (LIBERO's `ControlEnv`, nothing rendered: the host baseline of a
+    policy on the state) steps the same physics as the rendering env: the same state after
+    reset and every step, and no images."""
+    actions = np.random.default_rng(1).uniform(-1, 1, (4, 7)).astype(np.float32)
+    factory = "openral_mjx.benchmarks.libero.worker_env:LiberoEnv"
+    episode = [(5, {"init_state": 4}, actions)]
+    traces = {
+        size: _direct(
+            python,
+            factory,
+            {"task": "libero_object/2", "image_size": size},
+            episode,
+            tmp_path / f"{size}.log",
+        )[0]
+        for size in (None, IMAGE)
+    }
+    for t, (plain, rendered) in enumerate(zip(traces[None], traces[IMAGE], strict=True)):
+        np.testing.assert_array_equal(plain["state"], rendered["state"], err_msg=f"step {t}")
+        assert set(plain) == {"state"} and rendered["image"].shape == (IMAGE, IMAGE, 3)
+    scene = make_scene("libero", {"task": "libero_object/2", "image_size": None, "expert": False})
+    try:
+        assert scene.obs_layout == {"state": (0, 8)} and scene.observation_size == 8
+    finally:
+        scene.close()
 
 
 @pytest.mark.slow  # ~75 s on CI; LIBERO's images reach a lerobot policy in test_done_when_command

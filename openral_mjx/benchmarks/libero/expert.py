@@ -645,7 +645,7 @@ def libero_expert(scene: Any, arg: str | None) -> Policy:
             "opening a hinged door and placing into a region reached from the side are not "
             "scripted)"
         )
-    if name == "libero_mjx" and scene.obs_layout:  # a flat vector (no cameras)
+    if scene.obs_layout:  # a flat vector (no cameras)
         (s0, sn), (e0, en) = scene.obs_layout["state"], scene.obs_layout["expert"]
 
         def views(obs: Any) -> tuple[jax.Array, jax.Array]:

@@ -6,11 +6,13 @@ state ``s mod 50`` (LIBERO's protocol evaluates initial states 0..49, i.e. seeds
 with option ``protocol=sampled`` from LIBERO's own reset draw with numpy seeded by s (mod
 `sampled_states`, default 1,024). Observation: ``image`` and
 ``wrist_image`` (RGB uint8, `image_size` square, upright) and ``state`` (end-effector position,
-axis-angle, gripper fingers: 8 floats), as lerobot's LIBERO policies expect. Action: 7-D OSC
-pose delta and gripper in [-1, 1], 20 Hz. Success: LIBERO's goal predicates. Cameras render
-offscreen through EGL (Mesa's software rasteriser on a CPU-only machine, a GPU's where there
-is one). Instruction: the task's own language (`instructions`). The simulator runs in
-the ``lerobot-libero`` worker environment, created on first use (see `openral_mjx.host.envs`).
+axis-angle, gripper fingers: 8 floats), as lerobot's LIBERO policies expect; with
+``image_size=none`` LIBERO renders nothing and the observation is one flat vector (``state``,
+then ``expert``), as on `libero_mjx` without cameras, for policies on the state (mlp).
+Action: 7-D OSC pose delta and gripper in [-1, 1], 20 Hz. Success: LIBERO's goal predicates.
+Cameras render offscreen through EGL (Mesa's software rasteriser on a CPU-only machine, a GPU's
+where there is one). Instruction: the task's own language (`instructions`). The simulator runs
+in the ``lerobot-libero`` worker environment, created on first use (see `openral_mjx.host.envs`).
 """
 
 from __future__ import annotations
@@ -82,7 +84,8 @@ def instruction(task: str) -> str:
 
 @dataclasses.dataclass(frozen=True)
 class LiberoOptions(HostOptions):
-    """`libero` options: the task, the camera resolution, the episode limit (default: the
+    """`libero` options: the task, the camera resolution (None: no cameras, a flat
+    vector), the episode limit (default: the
     suite's), the offscreen GL platform (`egl`, or `osmesa` where EGL is missing), whether
     the observation has the ``expert`` entry that `libero-expert` reads, and the initial
     states: `protocol` ``standard`` (LIBERO's 50 shipped states, seed s -> state s mod 50) or
@@ -90,7 +93,7 @@ class LiberoOptions(HostOptions):
     BDDL regions, numpy seeded with s mod `sampled_states`: thousands of distinct seeds)."""
 
     task: str = "libero_spatial/0"
-    image_size: int = 128
+    image_size: int | None = 128
     max_steps: int | None = None
     gl: str = "egl"
     expert: bool = True
@@ -101,7 +104,8 @@ class LiberoOptions(HostOptions):
         super().__post_init__()
         parse_task(self.task)
         check_protocol(self.protocol, self.sampled_states)
-        check(self.image_size >= 8, f"option image_size={self.image_size}: must be >= 8")
+        if self.image_size is not None:
+            check(self.image_size >= 8, f"option image_size={self.image_size}: must be >= 8")
         if self.max_steps is not None:
             check(self.max_steps >= 1, f"option max_steps={self.max_steps}: must be >= 1")
         check(self.gl in ("egl", "osmesa"), f"option gl={self.gl!r}; valid: egl, osmesa")
@@ -110,11 +114,11 @@ class LiberoOptions(HostOptions):
 def libero(options: LiberoOptions, **_: object) -> HostScene:
     o = options
     size = o.image_size
-    observation = {
-        "image": ((size, size, 3), "uint8"),
-        "wrist_image": ((size, size, 3), "uint8"),
-        "state": ((8,), "float32"),
-    }
+    observation: dict = {}
+    if size is not None:
+        observation["image"] = ((size, size, 3), "uint8")
+        observation["wrist_image"] = ((size, size, 3), "uint8")
+    observation["state"] = ((8,), "float32")
     if o.expert:
         observation["expert"] = ((EXPERT_SIZE,), "float32")
     return panda_osc_scene(
@@ -129,6 +133,7 @@ def libero(options: LiberoOptions, **_: object) -> HostScene:
         n_init_states=init_state_count(o.protocol, o.sampled_states),
         reset_options={"sampled": True} if o.protocol == "sampled" else {},
         instruction=instruction(o.task),
+        flat_obs=size is None,
     )
 
 

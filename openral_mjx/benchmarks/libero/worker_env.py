@@ -1,10 +1,12 @@
 """A LIBERO task as a gym-style env (runs in a worker of the ``lerobot-libero`` environment).
 
-Builds LIBERO's `OffScreenRenderEnv` from the task's shipped BDDL file and resets it to one of
+Builds LIBERO's `OffScreenRenderEnv` (its `ControlEnv` without a renderer where
+`image_size` is None) from the task's shipped BDDL file and resets it to one of
 the task's shipped initial states (option ``init_state``), then holds the arm still for
 `SETTLE_STEPS` control steps so objects settle, as LIBERO's and lerobot's evaluations do.
 Observation (lerobot's LIBERO convention): ``image`` (agent view) and ``wrist_image``
-(eye in hand), RGB uint8 turned upright (MuJoCo renders them upside down), and ``state`` =
+(eye in hand), RGB uint8 turned upright (MuJoCo renders them upside down; none without a
+renderer), and ``state`` =
 end-effector position (3), axis-angle (3) and gripper finger positions (2), float32. Action:
 7-D OSC pose delta and gripper command in [-1, 1]. Success: LIBERO's own goal predicates
 (`check_success`); the episode ends there. With ``expert`` on, the observation also has
@@ -65,21 +67,28 @@ def configure() -> Path:
 class LiberoEnv:
     """One LIBERO task (see module docstring). `task` is ``suite/index``."""
 
-    def __init__(self, task: str, image_size: int = 128, expert: bool = False) -> None:
+    def __init__(self, task: str, image_size: int | None = 128, expert: bool = False) -> None:
         suite_name, _, index = task.partition("/")
         assets = configure()
         import libero.libero as libero_pkg
         from libero.libero import benchmark, get_libero_path
         from libero.libero.envs import OffScreenRenderEnv
+        from libero.libero.envs.env_wrapper import ControlEnv
 
         libero_pkg._assets_path_cache = str(assets)  # LIBERO would otherwise download them
         suite = benchmark.get_benchmark_dict()[suite_name]()
         self.task = suite.get_task(int(index))
         self.init_states = suite.get_task_init_states(int(index))
         bddl = Path(get_libero_path("bddl_files")) / self.task.problem_folder / self.task.bddl_file
-        self.env = OffScreenRenderEnv(
-            bddl_file_name=str(bddl), camera_heights=image_size, camera_widths=image_size
-        )
+        if image_size is None:  # the same task and physics, nothing rendered
+            self.env = ControlEnv(
+                bddl_file_name=str(bddl), has_offscreen_renderer=False, use_camera_obs=False
+            )
+        else:
+            self.env = OffScreenRenderEnv(
+                bddl_file_name=str(bddl), camera_heights=image_size, camera_widths=image_size
+            )
+        self._cameras = image_size is not None
         self._expert_ids: list[tuple[int, int, int]] | None = None
         if expert:
             from openral_mjx.benchmarks.libero.export import expert_entry, expert_ids, goal_atoms
@@ -103,11 +112,11 @@ class LiberoEnv:
                 raw["robot0_gripper_qpos"].astype(np.float32),
             ]
         )
-        obs = {
-            "image": np.ascontiguousarray(raw["agentview_image"][::-1, ::-1]),
-            "wrist_image": np.ascontiguousarray(raw["robot0_eye_in_hand_image"][::-1, ::-1]),
-            "state": state,
-        }
+        obs = {}
+        if self._cameras:
+            obs["image"] = np.ascontiguousarray(raw["agentview_image"][::-1, ::-1])
+            obs["wrist_image"] = np.ascontiguousarray(raw["robot0_eye_in_hand_image"][::-1, ::-1])
+        obs["state"] = state
         if self._expert_ids is not None:
             obs["expert"] = self._expert()
         return obs

@@ -57,6 +57,7 @@ def panda_osc_scene(
     n_init_states: int = 0,
     instruction: str = "",
     reset_options: dict[str, Any] | None = None,
+    flat_obs: bool = False,
 ) -> HostScene:
     """A robosuite-based scene (robosuite itself, or LIBERO on it): a Panda under OSC_POSE
     (7-D action in [-1, 1], 20 Hz) in the `lerobot-libero` worker environment."""
@@ -75,6 +76,7 @@ def panda_osc_scene(
         n_init_states=n_init_states,
         reset_options=dict(reset_options or {}),
         instruction=instruction,
+        flat_obs=flat_obs,
     )
     return HostScene(spec, options, ENV, ensure_env(ENV))
 

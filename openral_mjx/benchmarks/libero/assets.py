@@ -15,6 +15,7 @@ LIBERO's reset writes (its fixtures: cabinets, stoves, racks are placed that way
 
 from __future__ import annotations
 
+import concurrent.futures
 import contextlib
 import dataclasses
 import functools
@@ -23,6 +24,7 @@ import os
 import shutil
 import sys
 import tempfile
+import threading
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -144,8 +146,11 @@ def load_task(task: str) -> TaskModel:
     return _read(task) or _export(task)
 
 
-SAMPLED_BLOCK = 256  # seeds drawn per worker call: a progress step, and what a failure loses
+SAMPLED_BLOCK = 32  # seeds drawn per worker call (~2.5 s each on one core): a progress step
 SAMPLED_PER_SEED = ("states", "fixture_pos", "fixture_quat")
+# bump when `TaskExport.sampled_states`'s draw changes: older draws are drawn again (2: LIBERO's
+# full reset per seed; 1, unmarked, re-ran its placement and misplaced objects on fixtures)
+SAMPLED_FORMAT = 2
 
 
 def _read_sampled(path: Path) -> dict[str, np.ndarray] | None:
@@ -154,7 +159,8 @@ def _read_sampled(path: Path) -> dict[str, np.ndarray] | None:
             arrays = {k: z[k] for k in z.files}
     except (OSError, ValueError):
         return None
-    return arrays if int(arrays.get("format", -1)) == FORMAT else None
+    current = int(arrays.get("format", -1)) == FORMAT
+    return arrays if current and int(arrays.get("sampled_format", 1)) == SAMPLED_FORMAT else None
 
 
 def load_sampled(task: str, n: int) -> dict[str, np.ndarray]:
@@ -163,40 +169,84 @@ def load_sampled(task: str, n: int) -> dict[str, np.ndarray]:
     LIBERO's reset places without a joint (``fixture_ids`` in the export's body order,
     ``fixture_pos``, ``fixture_quat``), as `TaskExport.sampled_states` draws them. Kept in the
     export cache (``sampled.npz``) and extended in LIBERO's worker where it holds fewer, a
-    status line after each block of `SAMPLED_BLOCK` seeds."""
+    status line after each block of `SAMPLED_BLOCK` seeds. The blocks are drawn in one
+    worker per core (each draw is LIBERO's full reset: ~2.5 s on one core) and kept in seed
+    order as they complete, so an interrupted draw keeps a prefix."""
     load_task(task)  # the task's own export first: its format marks this file's too
     path = _task_dir(task) / "sampled.npz"
     have = _read_sampled(path)
     count = 0 if have is None else len(have["states"])
-    if count >= n:
-        return {**have, **{k: have[k][:n] for k in SAMPLED_PER_SEED}}
-    _say(f"drawing {task}'s initial states {count}..{n - 1} by LIBERO's reset, once")
-    log = None
-    start = time.perf_counter()
-    try:
-        with task_worker(task) as (worker, log):
-            while count < n:
-                stop = min(n, count + SAMPLED_BLOCK)
-                kwargs = {"start": count, "stop": stop}
-                msg = {"op": "call", "method": "sampled_states", "kwargs": kwargs}
-                new = worker.call(msg, TIMEOUT_S)
-                have = _grown(have, new)
-                _write_npz(path, have)
-                count = stop
-                _say(f"  {count}/{n} drawn ({time.perf_counter() - start:.0f} s)")
-    except (RemoteError, WorkerFailure) as e:
-        raise ConfigError(
-            f"drawing LIBERO task {task!r}'s initial states failed: {e} (log: {log})"
-        ) from None
+    if count < n:
+        have = _draw(task, path, have, count, n)
     assert have is not None
     return {**have, **{k: have[k][:n] for k in SAMPLED_PER_SEED}}
+
+
+def _draw(
+    task: str, path: Path, have: dict[str, np.ndarray] | None, count: int, n: int
+) -> dict[str, np.ndarray]:
+    """`have` extended with the draws of seeds ``count..n-1``, written after each block."""
+    blocks = [(a, min(n, a + SAMPLED_BLOCK)) for a in range(count, n, SAMPLED_BLOCK)]
+    n_workers = min(len(blocks), os.cpu_count() or 1)
+    _say(
+        f"drawing {task}'s initial states {count}..{n - 1} by LIBERO's reset, once "
+        f"({n_workers} workers)"
+    )
+    todo = list(reversed(blocks))
+    done: dict[int, dict[str, Any]] = {}
+    lock = threading.Lock()
+    start = time.perf_counter()
+
+    def work() -> None:
+        log = None
+        try:
+            with task_worker(task) as (worker, log):
+                while True:
+                    with lock:
+                        if not todo:
+                            return
+                        a, b = todo.pop()
+                    kwargs = {"start": a, "stop": b}
+                    msg = {"op": "call", "method": "sampled_states", "kwargs": kwargs}
+                    new = worker.call(msg, TIMEOUT_S)
+                    with lock:
+                        done[a] = new
+        except (RemoteError, WorkerFailure) as e:
+            with lock:
+                todo.clear()  # the other workers stop after their block
+            raise ConfigError(
+                f"drawing LIBERO task {task!r}'s initial states failed: {e} (log: {log})"
+            ) from None
+
+    with concurrent.futures.ThreadPoolExecutor(n_workers) as pool:
+        futures = [pool.submit(work) for _ in range(n_workers)]
+        try:
+            while count < n:
+                with lock:
+                    ready = done.pop(count, None)
+                if ready is None:
+                    if all(f.done() for f in futures):
+                        break  # a worker failed: its error is raised below
+                    time.sleep(0.2)
+                    continue
+                have = _grown(have, ready)
+                _write_npz(path, have)  # the prefix drawn so far: an interrupt keeps it
+                count = len(have["states"])
+                _say(f"  {count}/{n} drawn ({time.perf_counter() - start:.0f} s)")
+        finally:
+            with lock:
+                todo.clear()  # an interrupt: the workers stop after their block
+        for f in futures:
+            f.result()
+    assert have is not None
+    return have
 
 
 def _grown(have: dict[str, np.ndarray] | None, new: dict[str, Any]) -> dict[str, np.ndarray]:
     """`have` with the seeds of `new` (the next block) appended."""
     new = {k: np.asarray(v) for k, v in new.items()}
     if have is None:
-        return {"format": np.asarray(FORMAT), **new}
+        return {"format": np.asarray(FORMAT), "sampled_format": np.asarray(SAMPLED_FORMAT), **new}
     if not np.array_equal(have["fixture_ids"], new["fixture_ids"]):
         raise ConfigError("LIBERO's fixtures changed between blocks of drawn initial states")
     grown = {k: np.concatenate([have[k], new[k]]) for k in SAMPLED_PER_SEED}

@@ -147,31 +147,29 @@ class TaskExport:
 
     def sampled_states(self, start: int, stop: int) -> dict[str, np.ndarray]:
         """LIBERO's own initial state for each seed in ``start..stop-1`` of the mass-seed
-        protocol: numpy's RNG seeded with the seed as the worker's sampled `reset` seeds it,
-        then the reset's sampling as `fixture_poses` runs it (objects in their BDDL regions,
-        fixtures, articulated joints; retried as LIBERO's wrapper retries a failed placement).
-        Per seed the flattened ``[time, qpos, qvel]`` state and the poses of the fixtures'
-        root bodies (``fixture_ids``: LIBERO's reset places them without a joint)."""
-        from robosuite.utils.errors import RandomizationError
+        protocol: the worker's sampled `reset` itself (LIBERO's full reset, numpy seeded with
+        the seed: objects in their BDDL regions, fixtures, articulated joints, a failed
+        placement retried), before its settle steps. Per seed the flattened ``[time, qpos,
+        qvel]`` state and the poses of the fixtures' root bodies (``fixture_ids``: LIBERO's
+        reset places them without a joint).
 
-        inner = self.env
-        m = inner.sim.model._model
-        ids = np.array(sorted(m.body(f.root_body).id for f in inner.fixtures_dict.values()), int)
+        Only the full reset reproduces LIBERO: re-running its placement on the live
+        simulation (`sim.reset` and `_reset_internal`, as this did until 2026-11-29) put an
+        object placed on a fixture (``libero_spatial/3``'s second bowl, on the cabinet) where
+        the previous draw's state said, 0.9 m above LIBERO's."""
+        ids = None
         states, pos, quat = [], [], []
         for seed in range(start, stop):
-            np.random.seed(seed)
-            while True:
-                inner.sim.reset()
-                try:
-                    inner._reset_internal()
-                    break
-                except RandomizationError:
-                    continue
-            inner.sim.forward()
-            states.append(np.asarray(inner.sim.get_state().flatten(), np.float64))
+            self.host.start(seed, sampled=True)
+            m = self.env.sim.model._model  # the full reset builds a new simulation
+            if ids is None:
+                roots = [m.body(f.root_body).id for f in self.env.fixtures_dict.values()]
+                ids = np.array(sorted(roots), int)
+            states.append(np.asarray(self.env.sim.get_state().flatten(), np.float64))
             pos.append(m.body_pos[ids].copy())
             quat.append(m.body_quat[ids].copy())
         self._reset(0)  # leave the env as every other method finds it
+        assert ids is not None, "sampled_states needs start < stop"
         return {
             "states": np.stack(states),
             "fixture_ids": ids.astype(np.int64),

@@ -18,6 +18,7 @@ import numpy as np
 import pytest
 from worker_envs import require_worker_envs
 
+from openral_mjx.benchmarks.libero import assets
 from openral_mjx.benchmarks.libero.agreement import libero_reference
 from openral_mjx.benchmarks.libero.assets import ENV, load_sampled, load_task, physics_spec
 from openral_mjx.benchmarks.libero.mirror import LiberoMjx, LiberoMjxOptions
@@ -178,6 +179,20 @@ def test_sampled_protocol_starts_from_libero_s_own_draw(scene: LiberoMjx, libero
     standard = scene.export.init_states[1][1 : 1 + nq]
     assert np.abs(kept[1][1 : 1 + nq] - kept[2][1 : 1 + nq]).max() > 1e-3
     assert np.abs(kept[1][1 : 1 + nq] - standard).max() > 1e-3
+
+
+def test_an_object_on_a_fixture_is_drawn_where_libero_puts_it(monkeypatch) -> None:
+    """``libero_spatial/3`` sets its second bowl on the cabinet, a fixture LIBERO's reset
+    places too. The kept draws (each LIBERO's full reset, blocks drawn by one worker per core
+    and kept in seed order) are LIBERO's live draws, bit for bit, in the first block and in
+    later ones. Re-running the placement on the live simulation, as the export once did, put
+    that bowl 0.9 m higher, where it fell onto the scene after the settle."""
+    task = "libero_spatial/3"
+    monkeypatch.setattr(assets, "SAMPLED_BLOCK", 2)  # where the cache holds fewer draws
+    kept = load_sampled(task, 5)["states"]
+    with libero_reference(task) as libero:
+        for seed in (0, 3, 4):
+            np.testing.assert_array_equal(kept[seed], libero.drawn_state(seed)["state"])
 
 
 def goal_states(scene: LiberoMjx, n: int, seed: int) -> np.ndarray:

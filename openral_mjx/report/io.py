@@ -33,10 +33,11 @@ def check_readable(path: Path, what: str) -> None:
         raise ConfigError(f"{what} {str(path)!r} does not exist")
 
 
-def load_report(path: Path) -> EvalReport:
+def load_report(path: Path | str) -> EvalReport:
     """Read a report back, validated (`EvalReport.from_json`): every problem (missing file,
     a directory, bad JSON, another schema version, a wrong type, a missing or unknown field,
     counts that do not add up) is a one-line `ConfigError` naming the file and the field."""
+    path = Path(path)
     check_readable(path, "report")
     try:
         return EvalReport.from_json(path.read_text())

@@ -42,6 +42,7 @@ def test_round_trip(report, tmp_path):
     save_report(report, path)
     loaded = load_report(path)
     assert loaded == report
+    assert load_report(str(path)) == report  # a path as a string too (Python callers)
     assert json.loads(path.read_text())["schema_version"] == SCHEMA_VERSION
     assert [p.name for p in tmp_path.iterdir()] == ["r.json"]  # no temp file left
 

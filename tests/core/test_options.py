@@ -46,3 +46,11 @@ def test_yaml_errors_are_one_line(tmp_path):
     with pytest.raises(ConfigError, match=r"line 2, column \d+$") as exc:
         load_yaml(config)
     assert "\n" not in str(exc.value)
+
+
+def test_an_option_that_may_be_unset_says_so_and_takes_null():
+    needle = r"option image_size='none': expected an integer or null$"
+    with pytest.raises(ConfigError, match=needle):
+        scene_options("libero_mjx", parse_overrides(["image_size=none"]))
+    assert scene_options("libero_mjx", parse_overrides(["image_size=null"])).image_size is None
+    assert scene_options("libero_mjx", parse_overrides(["image_size=64"])).image_size == 64

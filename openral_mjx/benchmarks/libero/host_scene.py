@@ -7,7 +7,7 @@ with option ``protocol=sampled`` from LIBERO's own reset draw with numpy seeded 
 `sampled_states`, default 1,024). Observation: ``image`` and
 ``wrist_image`` (RGB uint8, `image_size` square, upright) and ``state`` (end-effector position,
 axis-angle, gripper fingers: 8 floats), as lerobot's LIBERO policies expect; with
-``image_size=none`` LIBERO renders nothing and the observation is one flat vector (``state``,
+``image_size=null`` LIBERO renders nothing and the observation is one flat vector (``state``,
 then ``expert``), as on `libero_mjx` without cameras, for policies on the state (mlp).
 Action: 7-D OSC pose delta and gripper in [-1, 1], 20 Hz. Success: LIBERO's goal predicates.
 Cameras render offscreen through EGL (Mesa's software rasteriser on a CPU-only machine, a GPU's
@@ -84,9 +84,9 @@ def instruction(task: str) -> str:
 
 @dataclasses.dataclass(frozen=True)
 class LiberoOptions(HostOptions):
-    """`libero` options: the task, the camera resolution (None: no cameras, a flat
-    vector), the episode limit (default: the
-    suite's), the offscreen GL platform (`egl`, or `osmesa` where EGL is missing), whether
+    """`libero` options: the task, the camera resolution (None, ``null`` on the command
+    line: no cameras, a flat vector), the episode limit (default: the suite's), the offscreen
+    GL platform (`egl`, or `osmesa` where EGL is missing), whether
     the observation has the ``expert`` entry that `libero-expert` reads, and the initial
     states: `protocol` ``standard`` (LIBERO's 50 shipped states, seed s -> state s mod 50) or
     ``sampled`` (LIBERO's own reset draws the objects, fixtures and joints from the task's

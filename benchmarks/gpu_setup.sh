@@ -31,9 +31,15 @@ if [ -n "${WARP_PART:-}" ]; then
 fi
 if [ -f /tmp/warp-parts/NAME ] && [ -f /tmp/warp-parts/part.00 ] && [ -f /tmp/warp-parts/part.01 ] \
    && [ ! -f /tmp/site/.warp-done ]; then
-  (cd /tmp/warp-parts && cat part.0* > "$(cat NAME)" && sha256sum -c SHA256 \
-   && python3 -m pip install -q --no-index --no-deps --no-compile --target /tmp/site "$(cat NAME)")
-  touch /tmp/site/.warp-done
+  # a part still missing (carried out of order) fails the checksum: said, not fatal, so the
+  # rest of this call's setup still runs
+  if (cd /tmp/warp-parts && cat part.0* > "$(cat NAME)" && sha256sum --quiet -c SHA256 \
+      && python3 -m pip install -q --no-index --no-deps --no-compile --target /tmp/site \
+        "$(cat NAME)"); then
+    touch /tmp/site/.warp-done
+  else
+    echo "warp-lang: its parts in /tmp/warp-parts do not make the wheel yet; not installed" >&2
+  fi
 fi
 # Warp's kernel cache from an earlier machine (same warp-lang, same GPU arch), if carried as
 # .warpcache/warpcache.tgz: saves the first run's ~5 min kernel build. Warp checks each
@@ -54,6 +60,7 @@ fi
 for d in .vis*; do
   [ -d "$d" ] || continue
   for a in "$d"/*.tar.xz; do
+    [ -f "$a" ] || continue  # a folder of raw split parts (joined by hand), not a tar
     [ -f "$OPENRAL_MJX_LIBERO_MODELS/.$(basename "$a")-done" ] && continue
     mkdir -p "$OPENRAL_MJX_LIBERO_MODELS" && tar xJf "$a" -C "$OPENRAL_MJX_LIBERO_MODELS" \
       && touch "$OPENRAL_MJX_LIBERO_MODELS/.$(basename "$a")-done"

@@ -48,12 +48,12 @@ def _coerce(name: str, value: Any, tp: Any) -> Any:
         if value is None and type(None) in args:
             return None
         inner = [a for a in args if a is not type(None)]
-        if type(None) not in args:
-            return _coerce(name, value, inner[0])
         try:
             return _coerce(name, value, inner[0])
-        except ConfigError as e:  # say that the option may be left unset too
-            raise ConfigError(f"{e} or null") from None
+        except ConfigError as e:
+            if type(None) not in args:
+                raise
+            raise ConfigError(f"{e} or null") from None  # it may be left unset too
     if origin is tuple:
         if not isinstance(value, list | tuple):
             raise ConfigError(f"option {name}={value!r}: expected a list of {len(args)} numbers")

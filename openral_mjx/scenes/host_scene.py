@@ -38,7 +38,7 @@ from openral_mjx.core.options import check
 from openral_mjx.host.batch import BatchConfig, EnvBatch
 from openral_mjx.host.envs import worker_versions
 from openral_mjx.host.pool import RemoteError, WorkerFailure, host_callback
-from openral_mjx.scenes.base import Scene, State
+from openral_mjx.scenes.base import Scene, State, obs_slices
 
 
 @dataclasses.dataclass(frozen=True)
@@ -223,11 +223,7 @@ class HostScene(Scene):
         """The flat observation's slices (`HostSceneSpec.flat_obs`); none for a dict."""
         if not self.host_spec.flat_obs:
             return {}
-        layout, start = {}, 0
-        for name, (shape, _) in self.host_spec.batch.observation.items():
-            layout[name] = (start, shape[0])
-            start += shape[0]
-        return layout
+        return obs_slices({k: s[0] for k, (s, _) in self.host_spec.batch.observation.items()})
 
     @property
     def observation_size(self) -> int:

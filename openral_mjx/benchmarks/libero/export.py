@@ -157,19 +157,13 @@ class TaskExport:
         simulation (`sim.reset` and `_reset_internal`, as this did until 2026-11-29) put an
         object placed on a fixture (``libero_spatial/3``'s second bowl, on the cabinet) where
         the previous draw's state said, 0.9 m above LIBERO's."""
-        ids = None
-        states, pos, quat = [], [], []
-        for seed in range(start, stop):
-            self.host.start(seed, sampled=True)
-            m = self.env.sim.model._model  # the full reset builds a new simulation
-            if ids is None:
-                roots = [m.body(f.root_body).id for f in self.env.fixtures_dict.values()]
-                ids = np.array(sorted(roots), int)
-            states.append(np.asarray(self.env.sim.get_state().flatten(), np.float64))
-            pos.append(m.body_pos[ids].copy())
-            quat.append(m.body_quat[ids].copy())
+        m = self.env.sim.model._model
+        ids = np.array(sorted(m.body(f.root_body).id for f in self.env.fixtures_dict.values()), int)
+        draws = [self.drawn_state(seed) for seed in range(start, stop)]
         self._reset(0)  # leave the env as every other method finds it
-        assert ids is not None, "sampled_states needs start < stop"
+        states = [d["state"] for d in draws]
+        pos = [d["body_pos"][ids] for d in draws]
+        quat = [d["body_quat"][ids] for d in draws]
         return {
             "states": np.stack(states),
             "fixture_ids": ids.astype(np.int64),
@@ -180,7 +174,7 @@ class TaskExport:
     def drawn_state(self, seed: int) -> dict[str, np.ndarray]:
         """LIBERO's full reset for seed `seed` of the mass-seed protocol, as the worker's
         sampled `reset` runs it before its settle steps: the flattened ``[time, qpos, qvel]``
-        state and every body's pose (what `sampled_states` must reproduce)."""
+        state and every body's pose (what `sampled_states` keeps, per seed)."""
         self.host.start(seed, sampled=True)
         sim = self.env.sim
         m = sim.model._model

@@ -8,7 +8,8 @@
   agreement, exact McNemar, and the median difference in steps to success.
 
 ``python -m openral_mjx.benchmarks.libero.agreement --tasks libero_object/0 --seeds 200``
-prints the table (markdown) and writes it as JSON with ``--out``.
+prints the table (markdown) and writes it as JSON with ``--out``; ``--protocol sampled`` runs
+the mass-seed protocol's draws, ``--reports DIR`` keeps both reports of each task.
 """
 
 from __future__ import annotations
@@ -27,7 +28,7 @@ from openral_mjx.benchmarks.libero.expert import coverage
 from openral_mjx.core.files import write_text_atomic
 from openral_mjx.evaluation import evaluate
 from openral_mjx.host.pool import Worker
-from openral_mjx.report import EvalReport
+from openral_mjx.report import EvalReport, save_report
 from openral_mjx.stats import compare_reports
 
 
@@ -73,23 +74,37 @@ def libero_reference(task: str) -> Iterator[LiberoReference]:
 
 
 def agreement_row(
-    task: str, seeds: int, backend: str = "c", host_envs: int = 8
+    task: str,
+    seeds: int,
+    backend: str = "c",
+    host_envs: int = 8,
+    protocol: str = "standard",
+    mirror_envs: int | None = None,
 ) -> tuple[dict[str, Any], EvalReport, EvalReport]:
     """`libero-expert` on seeds 0..seeds-1 of `task` on the mirror and on LIBERO: the table's
-    row, and the two reports (LIBERO's first)."""
+    row, and the two reports (LIBERO's first).
+
+    `protocol` ``sampled`` starts seed s from LIBERO's own draw for seed s on both scenes,
+    with as many draws as seeds (``sampled_states``; seed s < seeds is the same state under
+    any larger count, so the rows pair with runs of more draws). LIBERO runs without its
+    renderer: the expert reads the state, and the episodes are the same."""
+    scene_options: dict[str, Any] = {"task": task, "protocol": protocol}
+    if protocol == "sampled":
+        scene_options["sampled_states"] = seeds
     mirror = evaluate(
         "libero_mjx",
         "libero-expert",
-        n_envs=seeds,
+        n_envs=min(mirror_envs or seeds, seeds),
+        n_episodes=seeds,
         backend=backend,
-        options={"task": task},
+        options=scene_options,
     )
     host = evaluate(
         "libero",
         "libero-expert",
         n_envs=min(host_envs, seeds),
         n_episodes=seeds,
-        options={"task": task, "image_size": 8},  # no policy here reads the cameras
+        options={**scene_options, "image_size": None},
     )
     rc = compare_reports(host, mirror, mirrored=True)
     c = rc.comparison
@@ -140,12 +155,23 @@ def main(argv: Sequence[str] | None = None) -> None:
     ap.add_argument("--seeds", type=int, default=200)
     ap.add_argument("--backend", default="c", help="the mirror's backend")
     ap.add_argument("--host-envs", type=int, default=8, help="LIBERO worker processes")
+    ap.add_argument("--mirror-envs", type=int, default=None, help="the mirror's batch")
+    ap.add_argument("--protocol", choices=("standard", "sampled"), default="standard")
     ap.add_argument("--out", type=Path, default=None, help="JSON file for the rows")
+    ap.add_argument(
+        "--reports", type=Path, default=None, help="folder for both reports of each task"
+    )
     a = ap.parse_args(argv)
     rows = []
     for task in a.tasks:
-        row, _, _ = agreement_row(task, a.seeds, a.backend, a.host_envs)
+        row, host, mirror = agreement_row(
+            task, a.seeds, a.backend, a.host_envs, a.protocol, a.mirror_envs
+        )
         rows.append(row)
+        if a.reports is not None:
+            name = task.replace("/", "_")
+            save_report(host, a.reports / f"{name}_libero.json")
+            save_report(mirror, a.reports / f"{name}_mirror_{a.backend}.json")
         print(format_table([row]).splitlines()[-1], flush=True)
         if a.out is not None:
             write_text_atomic(a.out, json.dumps(rows, indent=1))

@@ -85,9 +85,9 @@ def agreement_row(
     row, and the two reports (LIBERO's first).
 
     `protocol` ``sampled`` starts seed s from LIBERO's own draw for seed s on both scenes,
-    with as many draws as seeds (``sampled_states``; seed s < seeds is the same state under
-    any larger count, so the rows pair with runs of more draws). LIBERO runs without its
-    renderer: the expert reads the state, and the episodes are the same."""
+    with as many draws as seeds (``sampled_states``: seed s < seeds is the same state under
+    any larger count, though `compare` pairs only reports of one count). LIBERO runs
+    without its renderer: the expert reads the state, and the episodes are the same."""
     scene_options: dict[str, Any] = {"task": task, "protocol": protocol}
     if protocol == "sampled":
         scene_options["sampled_states"] = seeds

@@ -3,7 +3,9 @@
 The mirror recomputes robosuite's OSC at each of a control step's 25 physics steps: the arm's
 pose, Jacobian, mass matrix and bias forces from a robot-only model (`RobotDynamics`), then
 `arm_torques`. On the GPU its evaluator ran at 0.32 of raw physics on `libero_object/0`
-(BENCHMARKS.md), where the contacts are cheap. This times that computation alone, batched as
+(2026-11-27), where the contacts are cheap, and the controller was thought to be why; on one
+H200 (2026-12-01, BENCHMARKS.md) it took 6.7 ms of the 52.7 ms per control step by which the
+evaluator (then at 0.60) trailed raw physics at 4,096 envs. This times it alone, batched as
 the runner batches it (``vmap`` over N envs, 25 calls in a loop, as in one control step), and
 counts the kernels XLA compiles it into, for two arithmetic forms:
 

@@ -78,8 +78,8 @@ def kernels(hlo: str) -> int:
     return count
 
 
-def measure(task: str, n: int, form: str, repeats: int) -> dict:
-    scene = make_scene("libero_mjx", {"task": task, "expert": False}, backend="c")
+def measure(scene, task: str, n: int, form: str, repeats: int) -> dict:
+    """One row: the controller of `scene` (task `task`) at `n` envs in arithmetic `form`."""
     dyn_fn, gains = scene.dynamics, scene.gains
     q0 = np.asarray(scene.mj_model.qpos0, np.float32)
     rq, rv = scene._robot_qpos, scene._robot_dofs
@@ -135,9 +135,11 @@ def main() -> None:
     a = ap.parse_args()
     rows = []
     for task in a.tasks:
+        # `c`: only the scene's controller and its constants are used, on JAX's device
+        scene = make_scene("libero_mjx", {"task": task, "expert": False}, backend="c")
         for n in a.ns:
             for form in a.forms:
-                row = measure(task, n, form, a.repeats)
+                row = measure(scene, task, n, form, a.repeats)
                 rows.append(row)
                 print(json.dumps(row), flush=True)
     if a.out:

@@ -129,7 +129,9 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--tasks", nargs="+", default=["libero_object/0"])
     ap.add_argument("--ns", nargs="+", type=int, default=[4096])
-    ap.add_argument("--forms", nargs="+", default=["fixed", "library"])
+    ap.add_argument(
+        "--forms", nargs="+", choices=("fixed", "library"), default=["fixed", "library"]
+    )
     ap.add_argument("--repeats", type=int, default=20)
     ap.add_argument("--out", default=None)
     a = ap.parse_args()

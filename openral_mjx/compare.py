@@ -39,7 +39,7 @@ from openral_mjx.cli.common import guarded, parse
 from openral_mjx.core.errors import ConfigError, unknown
 from openral_mjx.core.files import check_writable, check_writable_dir, write_json_atomic
 from openral_mjx.report import EvalReport, load_report
-from openral_mjx.scenes import mirrored, seed_options
+from openral_mjx.scenes import mirrored, seed_cycles, seed_options
 from openral_mjx.stats import UNPAIRED_TESTS, check_confidence, compare_reports, format_comparison
 from openral_mjx.stats.report_families import (
     SCHEMA,
@@ -149,6 +149,7 @@ def run(args: CompareArgs) -> int:
             args.test,
             mirrored(a.scene, b.scene),
             seed_options(a.scene, b.scene),
+            seed_cycles(a.scene, b.scene),
         )
         text = format_comparison(rc, a, b, (str(args.reports[0]), str(args.reports[1])))
         data = {"schema_version": SCHEMA, "kind": "pair", "a": labels[0], "b": labels[1]}

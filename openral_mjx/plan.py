@@ -117,7 +117,7 @@ class DecideArgs:
 
 def _pilot(paths: tuple[Path, Path]) -> Pilot:
     # imported here: the scene registry loads MJX (seconds), which only --from needs
-    from openral_mjx.scenes import mirrored, seed_options
+    from openral_mjx.scenes import mirrored, seed_cycles, seed_options
 
     a, b = (load_report(p) for p in paths)
     if os.path.samefile(*paths):
@@ -126,7 +126,10 @@ def _pilot(paths: tuple[Path, Path]) -> Pilot:
             "two runs"
         )
     same = seed_options(a.scene, b.scene)
-    rc = compare_reports(a, b, mirrored=mirrored(a.scene, b.scene), seed_options=same)
+    cycles = seed_cycles(a.scene, b.scene)
+    rc = compare_reports(
+        a, b, mirrored=mirrored(a.scene, b.scene), seed_options=same, seed_cycles=cycles
+    )
     return Pilot.from_comparison(rc.comparison)
 
 

@@ -41,6 +41,9 @@ class SceneEntry:
     # the options that choose which initial state a seed starts from (LIBERO's protocol):
     # two reports pair seed by seed only where they agree on them (`seed_options`)
     seed_options: tuple[str, ...] = ()
+    # those of them that count the initial states a seed cycles through (seed s starts from
+    # state s mod count): reports whose counts differ still pair on the seeds below both
+    seed_cycles: tuple[str, ...] = ()
     # the `warp` contact capacity per env its models need (None: `PhysicsSettings`'s), where
     # `--contacts-per-env` does not set one
     contacts_per_env: int | None = None
@@ -124,6 +127,13 @@ def seed_options(a: str, b: str) -> dict[str, Any]:
         defaults = {f.name: f.default for f in dataclasses.fields(entry.options_cls)}
         out |= {key: defaults.get(key) for key in entry.seed_options}
     return out
+
+
+def seed_cycles(a: str, b: str) -> tuple[str, ...]:
+    """The seed options of scenes `a` and `b` that count the initial states a seed cycles
+    through (`SceneEntry.seed_cycles`)."""
+    names = sorted({a, b} & set(SCENES.names()))
+    return tuple(sorted({key for name in names for key in SCENES.get(name).seed_cycles}))
 
 
 def scripted_policy(name: str, policy: str) -> str:

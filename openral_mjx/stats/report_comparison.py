@@ -15,7 +15,7 @@ reports also get the mean difference of two continuous values with a t interval
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Mapping
+from collections.abc import Collection, Mapping
 from typing import Any
 
 import numpy as np
@@ -56,16 +56,18 @@ def check_comparable(
     b: EvalReport,
     mirrored: bool = False,
     seed_options: Mapping[str, Any] | None = None,
-) -> None:
+    seed_cycles: Collection[str] = (),
+) -> int | None:
     """Raise `ConfigError` unless both reports evaluate the same scene and task (the scenes
     may differ where `mirrored`: one mirrors the other) and agree on `seed_options`, the
     options that choose which initial state a seed starts from (name -> the value a report
-    that does not record it ran with)."""
+    that does not record it ran with), except those in `seed_cycles` (`check_seed_options`).
+    Returns the seed below which their seeds pair (None: all)."""
     for field in ("task",) if mirrored else ("scene", "task"):
         va, vb = getattr(a, field), getattr(b, field)
         if va != vb:
             raise ConfigError(f"reports are not comparable: {field} {va!r} (A) vs {vb!r} (B)")
-    check_seed_options(a.options, b.options, seed_options or {})
+    return check_seed_options(a.options, b.options, seed_options or {}, cycles=seed_cycles)
 
 
 def check_seed_options(
@@ -73,17 +75,26 @@ def check_seed_options(
     b: Mapping[str, Any],
     seed_options: Mapping[str, Any],
     labels: tuple[str, str] = ("A", "B"),
-) -> None:
+    cycles: Collection[str] = (),
+) -> int | None:
     """Raise `ConfigError` unless options `a` and `b` agree on each of `seed_options` (name ->
     the value a run that does not record it ran with): else their seeds start from different
-    initial states."""
+    initial states. An option in `cycles` is a count of initial states that seed s takes
+    ``s mod count`` of (LIBERO's ``sampled_states``): where two counts differ, seeds below
+    both still start from the same states, and that bound is returned (None: every seed)."""
+    bound = None
     for key, default in seed_options.items():
         va, vb = a.get(key, default), b.get(key, default)
-        if va != vb:
-            raise ConfigError(
-                f"reports are not comparable: option {key} {va!r} ({labels[0]}) vs {vb!r} "
-                f"({labels[1]}): their seeds start from different initial states"
-            )
+        if va == vb:
+            continue
+        if key in cycles and isinstance(va, int) and isinstance(vb, int):
+            bound = min(va, vb, *(() if bound is None else (bound,)))
+            continue
+        raise ConfigError(
+            f"reports are not comparable: option {key} {va!r} ({labels[0]}) vs {vb!r} "
+            f"({labels[1]}): their seeds start from different initial states"
+        )
+    return bound
 
 
 def _outcomes(report: EvalReport, label: str) -> dict[int, bool]:
@@ -134,22 +145,30 @@ def compare_reports(
     test: str = "auto",
     mirrored: bool = False,
     seed_options: Mapping[str, Any] | None = None,
+    seed_cycles: Collection[str] = (),
 ) -> ReportComparison:
     """B against A: paired on common seeds when there are any (unless `unpaired`);
     `mirrored`: the reports' scenes differ, one mirroring the other; `seed_options`: the
-    options both must agree on (`check_comparable`)."""
+    options both must agree on, but for counts of initial states in `seed_cycles`, where
+    seeds below both counts pair (`check_comparable`)."""
     check_confidence(confidence)
     if test not in UNPAIRED_TESTS:
         raise unknown("unpaired test", test, UNPAIRED_TESTS)
-    check_comparable(a, b, mirrored, seed_options)
+    bound = check_comparable(a, b, mirrored, seed_options, seed_cycles)
     notes = _notes(a, b)
+    if bound is not None:
+        differ = [k for k in seed_cycles if a.options.get(k) != b.options.get(k)]
+        notes.append(
+            f"option {', '.join(differ)} differs: seeds below {bound} start from the same "
+            "initial states on both, and only those pair"
+        )
     if a.scene != b.scene:
         notes.append(
             f"scenes {a.scene} (A) and {b.scene} (B): one mirrors the other, seed s is the same "
             "initial state on both"
         )
     oa, ob = _outcomes(a, "A"), _outcomes(b, "B")
-    common = sorted(set(oa) & set(ob))
+    common = sorted(s for s in set(oa) & set(ob) if bound is None or s < bound)
     sa, sb = _steps_to_success(a), _steps_to_success(b)
     both = [s for s in common if s in sa and s in sb]
     timing = {

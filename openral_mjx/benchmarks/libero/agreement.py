@@ -86,7 +86,8 @@ def agreement_row(
 
     `protocol` ``sampled`` starts seed s from LIBERO's own draw for seed s on both scenes,
     with as many draws as seeds (``sampled_states``: seed s < seeds is the same state under
-    any larger count, though `compare` pairs only reports of one count). LIBERO runs
+    any larger count, and `compare` pairs these reports with runs of more draws on their first
+    `seeds` seeds). LIBERO runs
     without its renderer: the expert reads the state, and the episodes are the same."""
     scene_options: dict[str, Any] = {"task": task, "protocol": protocol}
     if protocol == "sampled":

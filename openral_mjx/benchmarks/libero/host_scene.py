@@ -149,5 +149,6 @@ SCENE = SceneEntry(
     suite_names=tuple(SUITES),
     expert="libero-expert",
     seed_options=("protocol", "sampled_states"),
+    seed_cycles=("sampled_states",),  # seed s draws state s mod sampled_states
     task_steps=task_steps,
 )

@@ -27,6 +27,7 @@ SCENE = SceneEntry(
     expert="libero-expert",
     mirrors="libero",
     seed_options=host_scene.SCENE.seed_options,
+    seed_cycles=host_scene.SCENE.seed_cycles,
     contacts_per_env=CONTACTS_PER_ENV,
     task_steps=host_scene.task_steps,
 )

@@ -3,13 +3,21 @@
 Per task (one per suite by default) and batch size N, in one process, side by side:
 
 - evaluator: `libero-expert` on `libero_mjx` through the runner (fixed chunks, `--steps`
-  control steps from seeds 0..N-1), in control steps/s;
-- raw physics: bare ``vmap(scan(fori_loop(25, mjx.step)))`` with the scene's own MJX model and
-  buffers, from the same reset states, holding each env's last reset control (the OSC
-  torques and gripper command the settle steps ended on), in control steps/s. It has no
-  controller, observation or goal, so ``evaluator / raw`` is what all of those cost. The
-  held controls keep the arm near its pose; the evaluator's expert moves it, so the raw
-  run's contacts are not the same (the solver may exit sooner or later on either).
+  control steps from seeds 0..N-1), in control steps/s. Its time includes each episode's
+  reset: LIBERO's 10 settle steps, physics as long as 10 control steps, which the count does
+  not credit (a user's episode runs up to 220-520 steps; `--steps` runs 30 by default);
+- raw physics, replayed (``raw``): bare ``vmap(scan(scan(25 x mjx.step)))`` with the scene's
+  own MJX model, buffers and per-env fixtures, from the same initial states, applying at every
+  physics step the control the evaluator's episode applied there (recorded by
+  `LiberoMjx.reset_controls` and `step_controls` in a run not timed): the same physics, the
+  settle steps included, credited the same `--steps` control steps. It has no controller,
+  observation, goal, policy or runner, so ``evaluator / raw`` is what all of those cost.
+  ``replay_qpos_max_error``: how far the replay's last joint positions are from the recorded
+  episode's (0 where it is the same trajectory);
+- raw physics, held (``raw_held``, the figure of 2026-11-27 to 2026-12-01): the same bare loop
+  from the settled reset states, holding each env's last reset control for `--steps` control
+  steps, no settle. The arm stays near its pose where the expert moves it through contacts,
+  so it is not the same physics; it is kept beside the replay to show by how much.
 
 Usage (GPU machine, after ``source benchmarks/gpu_setup.sh``; the task exports carried in
 ``OPENRAL_MJX_LIBERO_MODELS``):
@@ -36,13 +44,15 @@ from openral_mjx.physics.mjx_backend import mjx
 from openral_mjx.policies import make_policy
 from openral_mjx.runner import run_seeds
 from openral_mjx.runner.compile_cache import enable_compilation_cache
+from openral_mjx.runner.episode import policy_state0, seed_keys
 from openral_mjx.scenes import scene_options, scene_settings
 
 TASKS = ("libero_spatial/0", "libero_object/0", "libero_goal/1", "libero_10/0")
 
 
-def raw_physics(scene, n: int, steps: int) -> tuple[float, float, float]:
-    """(compile s, control steps/s, share of envs whose state stayed finite) of bare MJX."""
+def raw_held(scene, n: int, steps: int) -> tuple[float, float, float]:
+    """(compile s, control steps/s, share of envs whose state stayed finite) of bare MJX
+    holding the settled reset controls."""
     mx, n_sub = scene.backend.mx, scene.n_substeps
     states = jax.jit(jax.vmap(scene.reset_with_seed))(
         jnp.arange(n, dtype=jnp.int32), jax.vmap(jax.random.PRNGKey)(jnp.arange(n))
@@ -56,13 +66,70 @@ def raw_physics(scene, n: int, steps: int) -> tuple[float, float, float]:
         d = jax.lax.scan(control_step, d, None, length=steps)[0]
         return jnp.all(jnp.isfinite(d.qpos))
 
-    fn = jax.jit(jax.vmap(one))
+    return _timed(jax.jit(jax.vmap(one)), data, n * steps)
+
+
+def recorded_controls(scene, policy, n: int, steps: int):
+    """The controls the expert's episodes of seeds 0..n-1 apply at every physics step, the
+    settle steps first: ``(n, 10 + steps, n_substeps, nu)``, and their last joint positions."""
+
+    def run(seeds):
+        init = seeds % scene.n_init_states
+        policy_keys = seed_keys(seeds)[1]
+        state, settle = jax.vmap(scene.reset_controls)(init)
+        pstate = policy_state0(policy, state.obs, n)
+
+        def body(carry, t):
+            state, pstate = carry
+            keys = jax.vmap(jax.random.fold_in)(policy_keys, jnp.broadcast_to(t, (n,)))
+            act = jax.vmap(policy.act, in_axes=(None, 0, 0, 0))
+            action, pstate = act(None, pstate, state.obs, keys)
+            state, ctrls = jax.vmap(scene.step_controls)(state, action)
+            return (state, pstate), ctrls
+
+        (last, _), ctrls = jax.lax.scan(body, (state, pstate), jnp.arange(steps))
+        return jnp.concatenate([settle, jnp.swapaxes(ctrls, 0, 1)], axis=1), last.physics.data.qpos
+
+    return jax.block_until_ready(jax.jit(run)(jnp.arange(n, dtype=jnp.int32)))
+
+
+def raw_replay(scene, n: int, steps: int, ctrls, qpos_end) -> tuple[float, float, float, float]:
+    """(compile s, control steps/s, share of envs whose state stayed finite, the replay's
+    largest joint-position difference from the recorded episodes) of bare MJX replaying
+    `ctrls` from the initial states (settle steps included, `steps` credited)."""
+    init = jnp.arange(n, dtype=jnp.int32) % scene.n_init_states
+    start = jax.jit(jax.vmap(scene.initial_physics))(init)
+
+    def one(d, fields, u):
+        mx = scene.backend.model(fields)
+
+        def control_step(d, u_step):
+            physics_step = lambda d, u_i: (mjx.step(mx, d.replace(ctrl=u_i)), None)  # noqa: E731
+            return jax.lax.scan(physics_step, d, u_step)[0], None
+
+        return jax.lax.scan(control_step, d, u)[0].qpos
+
+    compile_s, rate, qpos = _timed(
+        jax.jit(jax.vmap(one)), (start.data, start.fields, ctrls), n * steps, splat=True
+    )
+    qpos = np.asarray(qpos)
+    finite = np.all(np.isfinite(qpos), axis=1)
+    error = float(np.nanmax(np.abs(qpos - np.asarray(qpos_end))))
+    return compile_s, rate, float(finite.mean()), error
+
+
+def _timed(fn, args, credited: int, splat: bool = False):
+    """(compile s, `credited` control steps per second of one run, its output) of `fn`."""
+    args = args if splat else (args,)
     t = time.perf_counter()
-    compiled = fn.lower(data).compile()
+    compiled = fn.lower(*args).compile()
     compile_s = time.perf_counter() - t
     t = time.perf_counter()
-    finite = np.asarray(jax.block_until_ready(compiled(data)))
-    return compile_s, n * steps / (time.perf_counter() - t), float(finite.mean())
+    out = jax.block_until_ready(compiled(*args))
+    rate = credited / (time.perf_counter() - t)
+    if splat:
+        return compile_s, rate, out
+    return compile_s, rate, float(np.asarray(out).mean())
 
 
 def main() -> None:
@@ -106,7 +173,10 @@ def measure(scene, policy, task: str, n: int, a: argparse.Namespace) -> dict:
     """One row: evaluator and raw physics of `task` at `n` envs."""
     arrays, timing = run_seeds(scene, policy, None, seeds=np.arange(n), n_envs=n, max_steps=a.steps)
     evaluator = timing.n_envs * timing.scan_steps / timing.run_s
-    raw_compile, raw, finite = raw_physics(scene, n, a.steps)
+    ctrls, qpos_end = recorded_controls(scene, policy, n, a.steps)
+    raw_compile, raw, finite, error = raw_replay(scene, n, a.steps, ctrls, qpos_end)
+    del ctrls
+    held_compile, held, held_finite = raw_held(scene, n, a.steps)
     row = {
         "task": task,
         "backend": a.backend,
@@ -120,7 +190,12 @@ def measure(scene, policy, task: str, n: int, a: argparse.Namespace) -> dict:
         "raw_compile_s": round(raw_compile, 1),
         "raw_steps_per_s": round(raw),
         "raw_finite_share": finite,
+        "replay_qpos_max_error": error,
         "evaluator_over_raw": round(evaluator / raw, 3),
+        "raw_held_compile_s": round(held_compile, 1),
+        "raw_held_steps_per_s": round(held),
+        "raw_held_finite_share": held_finite,
+        "evaluator_over_raw_held": round(evaluator / held, 3),
     }
     return row
 

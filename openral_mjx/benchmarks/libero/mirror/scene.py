@@ -40,7 +40,6 @@ reproduces of LIBERO's `OffScreenRenderEnv` (robosuite 1.4):
 from __future__ import annotations
 
 import dataclasses
-import functools
 from typing import Any
 
 import jax
@@ -385,23 +384,42 @@ class LiberoMjx(Scene):
         (`fixture_fields`; empty where the task's fixtures never move)."""
         return {k: table[init] for k, table in self._fixtures.items()}
 
-    def reset_from(self, init: jax.Array) -> State:
+    def initial_physics(self, init: jax.Array) -> PhysicsState:
+        """Initial state `init`'s physics before the settle steps, its fixtures placed."""
         fields = self.model_fields(init)
-        physics = self.backend.init(self._init_qpos[init], self._init_qvel[init], fields)
+        return self.backend.init(self._init_qpos[init], self._init_qvel[init], fields)
+
+    def reset_from(self, init: jax.Array) -> State:
+        return self._reset(init, record=False)[0]
+
+    def reset_controls(self, init: jax.Array) -> tuple[State, jax.Array]:
+        """`reset_from(init)` and the controls its settle steps applied, ``(settle_steps,
+        n_substeps, nu)``: with `step_controls`, an episode's physics to replay alone from
+        `initial_physics` (the evaluator against raw physics, `benchmarks/`)."""
+        return self._reset(init, record=True)
+
+    def _reset(self, init: jax.Array, record: bool) -> tuple[State, jax.Array | None]:
+        physics = self.initial_physics(init)
         controller = ControllerState(
             goal_pos=jnp.zeros(3, jnp.float32),  # every control step sets it
             goal_ori=self._goal_ori,
             gripper=jnp.zeros(2, jnp.float32),
         )
         n, action = self._settle
-        physics, controller, obs = jax.lax.fori_loop(
-            0,
-            n,
-            lambda i, pco: self._control(*pco[:2], action, stale=(i == 0) & self._stale_first),
-            (physics, controller, self._zero_obs()),
-        )
+
+        def settle(i: jax.Array, pco: tuple) -> tuple:
+            stale = (i == 0) & self._stale_first
+            return self._control(*pco[:2], action, stale=stale, record=record)
+
+        carry = (physics, controller, self._zero_obs())
+        ctrls = None
+        if record:
+            carry, ctrls = jax.lax.scan(lambda pco, i: _split(settle(i, pco)), carry, jnp.arange(n))
+        else:
+            carry = jax.lax.fori_loop(0, n, lambda i, pco: settle(i, pco)[:3], carry)
+        physics, controller, obs = carry
         diverged = ~physics.quantities.ok
-        return State(
+        state = State(
             physics=physics,
             obs=obs,
             reward=jnp.zeros((), jnp.float32),
@@ -409,6 +427,7 @@ class LiberoMjx(Scene):
             metrics={"success": jnp.zeros((), bool), "diverged": diverged},
             info={"controller": controller, "init_state": init.astype(jnp.int32)},
         )
+        return state, ctrls
 
     def episode_info(self, state: State) -> dict[str, jax.Array]:
         return {"init_state": state.info["init_state"]}
@@ -428,17 +447,19 @@ class LiberoMjx(Scene):
         controller: ControllerState,
         action: jax.Array,
         stale: jax.Array | bool = False,
-    ) -> tuple[PhysicsState, ControllerState, jax.Array]:
+        record: bool = False,
+    ) -> tuple[PhysicsState, ControllerState, Any, jax.Array | None]:
         """One control step: the goal from `action` (set at its first physics step, from the
         state it starts in), then the physics steps under OSC; returns the new state, the
-        controller and the observation (read after physics step `observed_substep`, as
-        robosuite's observables are). `stale`: the goal and the first physics step's
-        torques read the controller's reset state instead."""
+        controller, the observation (read after physics step `observed_substep`, as
+        robosuite's observables are) and, with `record` (no cameras), the controls each
+        physics step applied ``(n_substeps, nu)`` (else None). `stale`: the goal and the
+        first physics step's torques read the controller's reset state instead."""
         g = self.gains
         old, old_q, old_qd = self._stale
         nu = self.mj_model.nu
 
-        def substep(i: jax.Array, pco: tuple, render: bool = True) -> tuple:
+        def substep(i: jax.Array, pco: tuple, render: bool = True) -> tuple[tuple, jax.Array]:
             p, c, obs = pco
             q = p.quantities
             dyn, qa, qda = self._dynamics(p), q.qpos[self._arm_q], q.qvel[self._arm_v]
@@ -459,31 +480,49 @@ class LiberoMjx(Scene):
             ctrl = ctrl.at[self._grip_act].set(fingers)
             p = self.backend.step(p, ctrl, render=render)
             obs = jnp.where(i + 1 == self.observed_substep, self._obs(p), obs)
-            return p, c, obs
+            return (p, c, obs), ctrl
 
         carry = (physics, controller, jnp.zeros(STATE_SIZE, jnp.float32))
+        ctrls = None
         if self.cameras:  # render at physics step `drawn_substep` only
+            if record:
+                raise ValueError("libero_mjx records its controls without cameras only")
             drawn = self.drawn_substep
-            plain = functools.partial(substep, render=False)
+            plain = lambda i, pco: substep(i, pco, render=False)[0]  # noqa: E731
             carry = jax.lax.fori_loop(0, drawn, plain, carry)
-            carry = substep(jnp.int32(drawn), carry)
+            carry = substep(jnp.int32(drawn), carry)[0]
             carry = jax.lax.fori_loop(drawn + 1, self.n_substeps, plain, carry)
+        elif record:
+            body = lambda pco, i: substep(i, pco)  # noqa: E731
+            carry, ctrls = jax.lax.scan(body, carry, jnp.arange(self.n_substeps))
         else:
-            carry = jax.lax.fori_loop(0, self.n_substeps, substep, carry)
+            carry = jax.lax.fori_loop(0, self.n_substeps, lambda i, pco: substep(i, pco)[0], carry)
         physics, controller, state = carry
         obs = {"state": state}
         if self.options.expert:
             obs["expert"] = self._expert_entry(physics.quantities)
         if not self.cameras:
-            return physics, controller, jnp.concatenate(list(obs.values()))
-        return physics, controller, {**camera_images(physics.quantities), **obs}
+            return physics, controller, jnp.concatenate(list(obs.values())), ctrls
+        return physics, controller, {**camera_images(physics.quantities), **obs}, ctrls
 
     def step(self, state: State, action: jax.Array) -> State:
+        return self._step(state, action, record=False)[0]
+
+    def step_controls(self, state: State, action: jax.Array) -> tuple[State, jax.Array]:
+        """`step(state, action)` and the controls its physics steps applied, ``(n_substeps,
+        nu)`` (see `reset_controls`)."""
+        return self._step(state, action, record=True)
+
+    def _step(
+        self, state: State, action: jax.Array, record: bool
+    ) -> tuple[State, jax.Array | None]:
         action = action.astype(jnp.float32)
-        physics, controller, obs = self._control(state.physics, state.info["controller"], action)
+        physics, controller, obs, ctrls = self._control(
+            state.physics, state.info["controller"], action, record=record
+        )
         diverged = ~physics.quantities.ok
         success = self.goal(physics.quantities, body_offset=1) & ~diverged
-        return state.replace(
+        new = state.replace(
             physics=physics,
             obs=jax.tree.map(lambda x: jnp.where(diverged, jnp.zeros_like(x), x), obs),
             reward=success.astype(jnp.float32),
@@ -491,6 +530,7 @@ class LiberoMjx(Scene):
             metrics={"success": success, "diverged": diverged},
             info={**state.info, "controller": controller},
         )
+        return new, ctrls
 
     # ---- observation ----------------------------------------------------------------------
 
@@ -511,3 +551,8 @@ class LiberoMjx(Scene):
         return jnp.concatenate(
             [q.site_pos[0], axis_angle(q.body_quat[0]), q.qpos[self._fingers]]
         ).astype(jnp.float32)
+
+
+def _split(out: tuple) -> tuple[tuple, Any]:
+    """A control step's ``(physics, controller, obs, controls)`` as a scan's carry and output."""
+    return out[:3], out[3]

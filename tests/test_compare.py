@@ -162,9 +162,7 @@ def test_reports_of_different_draw_counts_pair_on_the_seeds_below_both(
     a = with_steps(variant(base, A, scene="libero", task="libero_object/0"), steps)
     b = with_steps(variant(base, B, scene="libero_mjx", task="libero_object/0"), steps)
     a = dataclasses.replace(a, options={**a.options, "protocol": "sampled", "sampled_states": 4})
-    b = dataclasses.replace(
-        b, options={**b.options, "protocol": "sampled", "sampled_states": 1024}
-    )
+    b = dataclasses.replace(b, options={**b.options, "protocol": "sampled", "sampled_states": 1024})
     code, out, _ = run_compare(monkeypatch, capsys, tmp_path, a, b)
     assert code == 0
     # seeds 0-3: A 1 0 0 1, B 1 1 1 1

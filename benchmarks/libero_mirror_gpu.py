@@ -71,7 +71,8 @@ def raw_held(scene, n: int, steps: int) -> tuple[float, float, float]:
 
 def recorded_controls(scene, policy, n: int, steps: int):
     """The controls the expert's episodes of seeds 0..n-1 apply at every physics step, the
-    settle steps first: ``(n, 10 + steps, n_substeps, nu)``, and their last joint positions."""
+    settle steps first: ``(n, 10 + steps, n_substeps, nu)``, their last joint positions, and
+    whether each env's episode stayed whole (a diverged env is parked, the replay is not)."""
 
     def run(seeds):
         init = seeds % scene.n_init_states
@@ -88,15 +89,19 @@ def recorded_controls(scene, policy, n: int, steps: int):
             return (state, pstate), ctrls
 
         (last, _), ctrls = jax.lax.scan(body, (state, pstate), jnp.arange(steps))
-        return jnp.concatenate([settle, jnp.swapaxes(ctrls, 0, 1)], axis=1), last.physics.data.qpos
+        ctrls = jnp.concatenate([settle, jnp.swapaxes(ctrls, 0, 1)], axis=1)
+        return ctrls, last.physics.data.qpos, last.physics.quantities.ok
 
     return jax.block_until_ready(jax.jit(run)(jnp.arange(n, dtype=jnp.int32)))
 
 
-def raw_replay(scene, n: int, steps: int, ctrls, qpos_end) -> tuple[float, float, float, float]:
+def raw_replay(
+    scene, n: int, steps: int, ctrls, qpos_end, whole
+) -> tuple[float, float, float, float]:
     """(compile s, control steps/s, share of envs whose state stayed finite, the replay's
-    largest joint-position difference from the recorded episodes) of bare MJX replaying
-    `ctrls` from the initial states (settle steps included, `steps` credited)."""
+    largest joint-position difference from the recorded episodes that stayed `whole`) of
+    bare MJX replaying `ctrls` from the initial states (settle steps included, `steps`
+    credited)."""
     init = jnp.arange(n, dtype=jnp.int32) % scene.n_init_states
     start = jax.jit(jax.vmap(scene.initial_physics))(init)
 
@@ -114,7 +119,8 @@ def raw_replay(scene, n: int, steps: int, ctrls, qpos_end) -> tuple[float, float
     )
     qpos = np.asarray(qpos)
     finite = np.all(np.isfinite(qpos), axis=1)
-    error = float(np.nanmax(np.abs(qpos - np.asarray(qpos_end))))
+    whole = np.asarray(whole)
+    error = float(np.nanmax(np.abs(qpos - np.asarray(qpos_end))[whole])) if whole.any() else None
     return compile_s, rate, float(finite.mean()), error
 
 
@@ -173,8 +179,8 @@ def measure(scene, policy, task: str, n: int, a: argparse.Namespace) -> dict:
     """One row: evaluator and raw physics of `task` at `n` envs."""
     arrays, timing = run_seeds(scene, policy, None, seeds=np.arange(n), n_envs=n, max_steps=a.steps)
     evaluator = timing.n_envs * timing.scan_steps / timing.run_s
-    ctrls, qpos_end = recorded_controls(scene, policy, n, a.steps)
-    raw_compile, raw, finite, error = raw_replay(scene, n, a.steps, ctrls, qpos_end)
+    ctrls, qpos_end, whole = recorded_controls(scene, policy, n, a.steps)
+    raw_compile, raw, finite, error = raw_replay(scene, n, a.steps, ctrls, qpos_end, whole)
     del ctrls
     held_compile, held, held_finite = raw_held(scene, n, a.steps)
     row = {

@@ -226,7 +226,8 @@ def test_a_region_with_a_part_of_its_target_over_it_is_not_placed_into() -> None
     """LIBERO's microwave (`libero_10/9`, world bounds at initial state 0): its inside, the
     region the mug goes `In`, lies under the microwave's top, 7.2 cm over the region's site;
     let down straight, the mug landed on the top (0 of 10 seeds). A basket's walls and a
-    burner 1 cm over its site are no roof, nor is a top that does not reach over the site."""
+    burner 1 cm over its site are no roof, nor is a top that does not reach over the site;
+    a shut drawer's cabinet over it is."""
     from openral_mjx.benchmarks.libero.expert import _roofed
 
     microwave = [
@@ -248,3 +249,7 @@ def test_a_region_with_a_part_of_its_target_over_it_is_not_placed_into() -> None
     assert not _roofed(basket, np.array([0.0, 0.0, 0.01]))
     burner = [_box([-0.05, -0.05, 0.01], [0.05, 0.05, 0.02])]
     assert not _roofed(burner, np.zeros(3))
+    # `libero_goal/3`'s bowl goes `In` the cabinet's top drawer, which starts shut: the
+    # cabinet's top (another body of the fixture than the drawer) lies 3.5 cm over its site
+    cabinet_top = [_box([-0.092, -0.344, 1.125], [0.163, -0.156, 1.128])]
+    assert _roofed(cabinet_top, np.array([0.036, -0.245, 1.091]))

@@ -98,6 +98,7 @@ def test_coverage_names_what_the_expert_plays() -> None:
     assert coverage("libero_goal/7") == "covered"  # turn on the stove
     assert coverage("libero_10/8") == "covered"  # the stove on, then both moka pots on it
     assert coverage("libero_90/0") == "covered"  # shut the cabinet's top drawer
+    assert coverage("libero_goal/3") == "not covered"  # In(bowl, the shut top drawer)
     assert coverage("libero_10/3") == "partly"  # the bowl into the bottom drawer, not shut
     assert coverage("libero_90/22") == "not covered"  # shut a bottom drawer
     assert coverage("libero_goal/0") == "not covered"  # open a drawer

@@ -10,6 +10,7 @@
 ``python -m openral_mjx.benchmarks.libero.agreement --tasks libero_object/0 --seeds 200``
 prints the table (markdown) and writes it as JSON with ``--out``; ``--protocol sampled`` runs
 the mass-seed protocol's draws, ``--reports DIR`` keeps both reports of each task.
+``--from-reports DIR/*.json`` runs nothing: the table of stored reports (`rows_from_reports`).
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import json
+import sys
 from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any
@@ -25,10 +27,13 @@ import numpy as np
 
 from openral_mjx.benchmarks.libero.assets import TIMEOUT_S, task_worker
 from openral_mjx.benchmarks.libero.expert import coverage
+from openral_mjx.benchmarks.libero.host_scene import SUITES
+from openral_mjx.core.errors import ConfigError
 from openral_mjx.core.files import write_text_atomic
 from openral_mjx.evaluation import evaluate
 from openral_mjx.host.pool import Worker
-from openral_mjx.report import EvalReport, save_report
+from openral_mjx.report import EvalReport, load_report, save_report
+from openral_mjx.scenes import seed_cycles, seed_options
 from openral_mjx.stats import compare_reports
 
 
@@ -107,12 +112,24 @@ def agreement_row(
         n_episodes=seeds,
         options={**scene_options, "image_size": None},
     )
-    rc = compare_reports(host, mirror, mirrored=True)
+    return comparison_row(host, mirror), host, mirror
+
+
+def comparison_row(host: EvalReport, mirror: EvalReport) -> dict[str, Any]:
+    """The agreement table's row of a LIBERO report against a mirror report of one task,
+    paired seed by seed (`compare_reports`; seeds below both draw counts where those differ)."""
+    rc = compare_reports(
+        host,
+        mirror,
+        mirrored=True,
+        seed_options=seed_options(host.scene, mirror.scene),
+        seed_cycles=seed_cycles(host.scene, mirror.scene),
+    )
     c = rc.comparison
-    row = {
-        "task": task,
-        "coverage": coverage(task),
-        "backend": backend,
+    return {
+        "task": mirror.task,
+        "coverage": coverage(mirror.task),
+        "backend": mirror.backend,
         "seeds": rc.common_seeds,
         "libero_rate": host.success_rate,
         "libero_ci": [host.ci_low, host.ci_high],
@@ -126,22 +143,51 @@ def agreement_row(
         "steps_median_difference": rc.steps_median_difference,
         "mirror_diverged": mirror.diverged,
     }
-    return row, host, mirror
+
+
+def rows_from_reports(paths: Sequence[Path]) -> list[dict[str, Any]]:
+    """The table's rows from stored reports (`--reports` folders, `eval --out` files): each
+    `libero_mjx` report against the latest `libero` report of its task it pairs with, in the
+    suites' order. A mirror report with no such LIBERO report is a `ConfigError`."""
+    reports = [load_report(p) for p in paths]
+    hosts = sorted((r for r in reports if r.scene == "libero"), key=lambda r: r.created_at)
+    rows = []
+    for mirror in (r for r in reports if r.scene == "libero_mjx"):
+        row = None
+        for host in reversed([h for h in hosts if h.task == mirror.task]):
+            with contextlib.suppress(ConfigError):  # another protocol: not its pair
+                row = comparison_row(host, mirror)
+                break
+        if row is None:
+            raise ConfigError(
+                f"no LIBERO report of task {mirror.task!r} among the reports pairs with the "
+                f"mirror's on {mirror.backend} (same task and protocol)"
+            )
+        rows.append(row)
+    return sorted(rows, key=_order)
+
+
+def _order(row: dict[str, Any]) -> tuple[int, int, str]:
+    suite, index = row["task"].split("/")
+    suites = list(SUITES)
+    return suites.index(suite) if suite in suites else len(suites), int(index), row["backend"]
 
 
 def format_table(rows: Sequence[dict[str, Any]]) -> str:
     """The agreement table in markdown."""
     lines = [
-        "| task | seeds | LIBERO | mirror | per-seed agreement | McNemar p | "
-        "steps to success, mirror - LIBERO (median) |",
-        "|---|---|---|---|---|---|---|",
+        "| task | backend | seeds | LIBERO | mirror (diverged) | per-seed agreement | "
+        "McNemar p | steps to success, mirror - LIBERO (median) |",
+        "|---|---|---|---|---|---|---|---|",
     ]
     pct = lambda r, ci: f"{100 * r:.1f}% [{100 * ci[0]:.1f}, {100 * ci[1]:.1f}]"  # noqa: E731
     for r in rows:
         steps = r["steps_median_difference"]
+        diverged = f" ({r['mirror_diverged']})" if r["mirror_diverged"] else ""
         lines.append(
-            f"| `{r['task']}` | {r['seeds']} | {pct(r['libero_rate'], r['libero_ci'])} | "
-            f"{pct(r['mirror_rate'], r['mirror_ci'])} | {100 * r['agreement']:.1f}% | "
+            f"| `{r['task']}` | {r['backend']} | {r['seeds']} | "
+            f"{pct(r['libero_rate'], r['libero_ci'])} | "
+            f"{pct(r['mirror_rate'], r['mirror_ci'])}{diverged} | {100 * r['agreement']:.1f}% | "
             f"{r['mcnemar_p']:.2g} | {'-' if steps is None else f'{steps:+g}'} |"
         )
     return "\n".join(lines)
@@ -152,7 +198,16 @@ def main(argv: Sequence[str] | None = None) -> None:
         prog="python -m openral_mjx.benchmarks.libero.agreement",
         description="libero-expert closed loop on the mirror and on LIBERO, seed by seed.",
     )
-    ap.add_argument("--tasks", nargs="+", required=True, help="SUITE/INDEX ...")
+    what = ap.add_mutually_exclusive_group(required=True)
+    what.add_argument("--tasks", nargs="+", help="SUITE/INDEX ...: run both scenes")
+    what.add_argument(
+        "--from-reports",
+        nargs="+",
+        type=Path,
+        metavar="REPORT",
+        help="no runs: the table of stored reports of both scenes (each mirror report against "
+        "its task's latest LIBERO report)",
+    )
     ap.add_argument("--seeds", type=int, default=200)
     ap.add_argument("--backend", default="c", help="the mirror's backend")
     ap.add_argument("--host-envs", type=int, default=8, help="LIBERO worker processes")
@@ -163,6 +218,16 @@ def main(argv: Sequence[str] | None = None) -> None:
         "--reports", type=Path, default=None, help="folder for both reports of each task"
     )
     a = ap.parse_args(argv)
+    if a.from_reports is not None:
+        try:
+            rows = rows_from_reports(a.from_reports)
+        except ConfigError as e:  # a bad or unpaired report: one line, exit 2
+            print(f"error: {e}", file=sys.stderr)
+            raise SystemExit(2) from None
+        if a.out is not None:
+            write_text_atomic(a.out, json.dumps(rows, indent=1))
+        print(format_table(rows))
+        return
     rows = []
     for task in a.tasks:
         row, host, mirror = agreement_row(

@@ -56,6 +56,7 @@ def episode_results(
     steps = arrays["steps"].tolist()
     success = arrays["success"].tolist()
     diverged = arrays["diverged"].tolist()
+    overflowed = arrays["overflowed"].tolist() if "overflowed" in arrays else [False] * len(seeds)
     first = arrays["first_success_step"].tolist()
     results = []
     for i, seed in enumerate(seeds.tolist()):
@@ -79,6 +80,7 @@ def episode_results(
                     **metadata,
                     "seed": seed,
                     "diverged": diverged[i],
+                    **({"overflowed": True} if overflowed[i] else {}),
                     "first_success_step": first[i],
                     "factors": {k: v[i] for k, v in factors.items()},
                     **extra,

@@ -476,6 +476,7 @@ def _report(
         confidence=0.95,
         ci_method="sequential-exact" if exact else "wilson",
         diverged=sum(bool(e.metadata.get("diverged")) for e in episodes),
+        overflowed=sum(bool(e.metadata.get("overflowed")) for e in episodes),
         per_task=[
             TaskRow(
                 scene.task,

@@ -484,6 +484,7 @@ def merge_reports(
         ci_low=low,
         ci_high=high,
         diverged=sum(r.diverged for r in reports),
+        overflowed=sum(r.overflowed for r in reports),
         per_task=rows,
         breakdown=[],
         env_steps_per_s=steps / run_s,

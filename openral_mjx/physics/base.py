@@ -110,6 +110,10 @@ class Quantities:
     sensors: dict[str, jax.Array]
     # (len(spec.contacts),) bool: whether each pair of `QuantitySpec.contacts` touches
     contacts: jax.Array | None = None
+    # () bool, once set kept: an engine buffer (contacts, constraints) overflowed, which also
+    # clears `ok`; a capacity to raise, not physics gone wrong. None: a backend with no such
+    # buffers (`c`)
+    overflowed: jax.Array | None = None
 
 
 @struct.dataclass

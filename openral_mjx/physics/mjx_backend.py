@@ -178,8 +178,15 @@ class MjxBackend(PhysicsBackend):
             ok=self._data_ok(d),
             sensors=self.read_sensors(d.xpos, d.xquat, fields),
             contacts=self._touching(d),
+            overflowed=self._overflowed(d),
         )
         return d, q
+
+    def _overflowed(self, d: mjx.Data) -> jax.Array:
+        """Whether a buffer of `d`'s last step overflowed (MJX's own buffers never do; a
+        capped contact group is `_contacts_kept`'s, checked per physics step)."""
+        del d
+        return jnp.zeros((), bool)
 
     def _touching(self, d: mjx.Data) -> jax.Array | None:
         """Whether each `QuantitySpec.contacts` pair touches, from the contact sensors the
@@ -239,10 +246,13 @@ class MjxBackend(PhysicsBackend):
             d = _physics_step(mx, d)
             return d, kept & self._contacts_kept(d)
 
-        d, kept = jax.lax.fori_loop(0, self.n_substeps, substep, (d, ok))
+        d, kept = jax.lax.fori_loop(0, self.n_substeps, substep, (d, jnp.ones((), bool)))
         if self.quantity_spec.poses_after_step:  # the next step's forward pass redoes them
             d = self._kinematics(mx, d, state.fields)
         # a step that does not render keeps the previous images (`PhysicsBackend.step`)
         same = None if render else {k: state.quantities.sensors[k] for k in self.rendered}
         d, q = self._readout(d, state.fields, same)
-        return PhysicsState(data=d, quantities=q.replace(ok=q.ok & kept), fields=state.fields)
+        # both sticky: a parked env is finite again, but its episode stays what it was
+        overflowed = state.quantities.overflowed | q.overflowed | (ok & ~kept)
+        q = q.replace(ok=q.ok & kept & ok, overflowed=overflowed)
+        return PhysicsState(data=d, quantities=q, fields=state.fields)

@@ -140,8 +140,10 @@ class WarpBackend(MjxBackend):
         return d, q.replace(sensors={**q.sensors, **images})
 
     def _data_ok(self, d: mjx.Data) -> jax.Array:
-        overflow = jnp.bitwise_and(d._impl.overflow, self._fatal)
-        return all_finite(d.qpos, d.qvel) & jnp.all(overflow == 0)
+        return all_finite(d.qpos, d.qvel) & ~self._overflowed(d)
+
+    def _overflowed(self, d: mjx.Data) -> jax.Array:
+        return jnp.any(jnp.bitwise_and(d._impl.overflow, self._fatal) != 0)
 
     def warm_up(self) -> None:
         """Warp builds (or loads from its cache) its kernels on the first call: one env, one

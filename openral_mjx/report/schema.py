@@ -27,7 +27,7 @@ from openral_mjx.report.validation import (
     validate_json,
 )
 
-SCHEMA_VERSION = "openral_mjx.eval_report/8"
+SCHEMA_VERSION = "openral_mjx.eval_report/9"
 # /2 has the same fields as /3; /3 only widened what the latency fields and metadata may hold
 # (a torch policy's own latencies, a host worker's error), so a /2 report reads as it was.
 # /4 added `live_env_steps_per_s` (continuous batching), None when read from /2 or /3.
@@ -38,6 +38,8 @@ SCHEMA_VERSION = "openral_mjx.eval_report/8"
 # `cluster` (where a suite's tasks ran on a Ray cluster), None when read from /2../6.
 # /8 added `build_s` (seconds building the scene and the policy before compiling), {} when
 # read from /2../7.
+# /9 added `overflowed` (diverged episodes whose engine buffers overflowed), 0 when read from
+# /2../8.
 READABLE_VERSIONS = (
     "openral_mjx.eval_report/2",
     "openral_mjx.eval_report/3",
@@ -45,6 +47,7 @@ READABLE_VERSIONS = (
     "openral_mjx.eval_report/5",
     "openral_mjx.eval_report/6",
     "openral_mjx.eval_report/7",
+    "openral_mjx.eval_report/8",
     SCHEMA_VERSION,
 )
 
@@ -61,7 +64,8 @@ class EpisodeResult:
     and `max_step_latency_ms` the largest such chunk mean over the run (per-step timing inside
     a fused scan is not observable); `budget_violations` counts this episode's steps taken
     while the batch step was slower than the control period.
-    `metadata` carries seed, scene, task, robot, policy, backend, diverged, first_success_step,
+    `metadata` carries seed, scene, task, robot, policy, backend, diverged (and, for a diverged
+    episode whose backend says, overflowed: whether an engine buffer ran out), first_success_step,
     `factors` (the scene's randomised factors of this episode, name -> value) and, for host
     scenes, `error` (why a worker fault ended the episode, or null).
     `frames` is None, or (for the first episodes of a run with `--frames`, see
@@ -275,6 +279,9 @@ class EvalReport:
     `build_s` is what came before `compile_s`: seconds building the `scene` and the `policy`
     (with its parameters), by what the run built (a suite's: summed over its tasks; a policy
     kept from an earlier task counts only its parameters), so that start-up is accounted for.
+    `overflowed` counts the `diverged` episodes whose physics engine ran out of buffer room
+    (MuJoCo-Warp's contacts or constraints: a capacity to raise, `--contacts-per-env`), and
+    each such episode's metadata says ``overflowed`` true.
     """
 
     __pydantic_config__: ClassVar[ConfigDict] = STRICT
@@ -316,12 +323,18 @@ class EvalReport:
     decision: DecisionInfo | None = None
     cluster: ClusterInfo | None = None
     build_s: dict[str, float] = dataclasses.field(default_factory=dict)
+    overflowed: Count = 0
     schema_version: str = SCHEMA_VERSION
 
     def summary(self) -> str:
         """The one-line human summary printed by the CLI."""
         pct = 100 * self.success_rate
         div = f", {self.diverged} diverged" if self.diverged else ""
+        if self.overflowed:
+            div += (
+                f" ({self.overflowed} from full physics buffers: raise --contacts-per-env or "
+                "--ccd-contacts-per-env)"
+            )
         return (
             f"{self.scene}/{self.policy} on {self.backend}: success {pct:.1f}% "
             f"[{100 * self.ci_low:.1f}, {100 * self.ci_high:.1f}] ({self.ci_method} "
@@ -383,6 +396,10 @@ def check_totals(report: EvalReport) -> None:
     n, k = report.n_episodes, report.successes
     check(k <= n, f"successes {k} > n_episodes {n}")
     check(report.diverged <= n, f"diverged {report.diverged} > n_episodes {n}")
+    check(
+        report.overflowed <= report.diverged,
+        f"overflowed {report.overflowed} > diverged {report.diverged}",
+    )
     check(len(report.episodes) == n, f"episodes holds {len(report.episodes)}, n_episodes is {n}")
     won = sum(e.success for e in report.episodes)
     check(won == k, f"successes is {k}, but {won} episodes have success true")

@@ -29,6 +29,9 @@ class EpisodeArrays:
     first_success_step: jax.Array  # int32, -1 if never
     total_reward: jax.Array  # float32
     diverged: jax.Array  # bool: non-finite or engine-reset state; never a success
+    # bool: diverged because an engine buffer overflowed (contacts, constraints: a capacity to
+    # raise), where the backend says (`Quantities.overflowed`); else False
+    overflowed: jax.Array
     # Per-step policy latency over the episode's steps (zeros for policies that report none):
     latency_sum_ms: jax.Array  # float32
     latency_max_ms: jax.Array  # float32
@@ -62,6 +65,13 @@ def policy_state0(policy: Policy, obs: Any, n: int) -> Any:
     return jax.tree.map(lambda x: jnp.broadcast_to(x, (n, *jnp.shape(x))), pstate0)
 
 
+def overflowed(state: State) -> jax.Array:
+    """Per env of a batch's `state`, whether an engine buffer overflowed (all False where the
+    scene has no physics of ours or its backend no buffers)."""
+    flag = getattr(getattr(state.physics, "quantities", None), "overflowed", None)
+    return jnp.zeros(state.done.shape, bool) if flag is None else flag
+
+
 def start_arrays(state: State) -> EpisodeArrays:
     """A batch's episode accumulators at its reset `state` (an episode may end at reset)."""
     n = state.done.shape[0]
@@ -72,6 +82,7 @@ def start_arrays(state: State) -> EpisodeArrays:
         first_success_step=jnp.where(state.metrics["success"], 0, -1).astype(jnp.int32),
         total_reward=zero,
         diverged=state.metrics["diverged"],
+        overflowed=state.metrics["diverged"] & overflowed(state),
         latency_sum_ms=zero,
         latency_max_ms=zero,
         latency_violations=jnp.zeros(n, jnp.int32),
@@ -124,6 +135,7 @@ def accumulate(
         ),
         total_reward=acc.total_reward + jnp.where(live, new_state.reward, 0.0),
         diverged=acc.diverged | diverged,
+        overflowed=acc.overflowed | (diverged & overflowed(new_state)),
         latency_sum_ms=acc.latency_sum_ms + latency,
         latency_max_ms=jnp.maximum(acc.latency_max_ms, latency),
         latency_violations=acc.latency_violations + (latency > budget_ms),

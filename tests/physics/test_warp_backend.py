@@ -23,6 +23,22 @@ def test_contact_overflow_marks_env_diverged():
     state = jax.jit(jax.vmap(tiny.step))(state, jnp.zeros((2, tiny.action_size)))
     assert state.metrics["diverged"].all()
     assert not state.metrics["success"].any()
+    assert state.physics.quantities.overflowed.all()  # a capacity, not physics gone wrong
+
+
+def test_an_overflow_is_reported_as_such():
+    """Through the evaluator, episodes that overflowed are diverged and say so: per episode
+    (``overflowed``), counted in the report, and in its summary with the flag to raise."""
+    from openral_mjx.evaluation import evaluate
+
+    kw = {"n_envs": 2, "n_episodes": 2, "max_steps": 2, "backend": "warp", "threads": 1}
+    report = evaluate("tabletop_push", "zero", contacts_per_env=1, **kw)
+    assert report.diverged == report.overflowed == 2
+    assert all(e.metadata["overflowed"] for e in report.episodes)
+    assert "2 diverged (2 from full physics buffers: raise --contacts-per-env" in report.summary()
+    fine = evaluate("tabletop_push", "zero", **kw)
+    assert fine.diverged == fine.overflowed == 0
+    assert not any("overflowed" in e.metadata for e in fine.episodes)
 
 
 def test_batch_larger_than_buffers_is_rejected(push_warp):
@@ -44,6 +60,7 @@ def test_diverged_env_is_parked_and_spares_its_neighbours(push_warp):
     action = jnp.zeros((n, scene.action_size))
     a, b = step(poisoned, action), step(healthy, action)
     assert a.metrics["diverged"].tolist() == [True, False]
+    assert not a.physics.quantities.overflowed.any()  # non-finite: no buffer ran out
     assert bool(jnp.isfinite(a.physics.quantities.qpos).all())
     np.testing.assert_array_equal(a.physics.quantities.qpos[1], b.physics.quantities.qpos[1])
 

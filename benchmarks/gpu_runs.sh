@@ -374,14 +374,16 @@ json.dump(d, open(sys.argv[2], 'w'), indent=1)" "/tmp/libero_act_$s.json" "$out/
                 # libero_object/0), N seeds at once (default 1,024), per POLICIES (default
                 # "act expert"): act, the random-weight ACT on two IMAGE px cameras; mlp, a
                 # random-weight JAX MLP on the 8-D state; expert, libero-expert on the state.
-                # Each task's draws come with its export
+                # Each task's draws come with its export. EXTRA passes more flags
+                # (--contacts-per-env 512: libero_10/0's two cans in the basket overflow 256)
     n=${N:-1024}
     for t in ${TASKS:-${TASK:-libero_object/0}}; do
       tag=$(echo "$t" | tr / _)
       for p in ${POLICIES:-act expert}; do
         libero_policy "$p" || exit 2
-        ev "libero_mass_${p}_${tag}_$n" --scene libero_mjx --task "$t" --backend warp \
-          --n-envs "$n" --policy "$policy" --opt protocol=sampled "sampled_states=$n" "${opts[@]}"
+        ev "libero_mass_${p}_${tag}_$n${TAG:-}" --scene libero_mjx --task "$t" --backend warp \
+          --n-envs "$n" --policy "$policy" --opt protocol=sampled "sampled_states=$n" "${opts[@]}" \
+          ${EXTRA:-}
       done
     done ;;
   libero-host)  # issue 42: the baseline of libero-mass, LIBERO itself through the host adapter

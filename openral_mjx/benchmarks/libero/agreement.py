@@ -130,6 +130,7 @@ def comparison_row(host: EvalReport, mirror: EvalReport) -> dict[str, Any]:
         "task": mirror.task,
         "coverage": coverage(mirror.task),
         "backend": mirror.backend,
+        "mujoco": mirror.versions.get("mujoco"),
         "seeds": rc.common_seeds,
         "libero_rate": host.success_rate,
         "libero_ci": [host.ci_low, host.ci_high],
@@ -167,16 +168,17 @@ def rows_from_reports(paths: Sequence[Path]) -> list[dict[str, Any]]:
     return sorted(rows, key=_order)
 
 
-def _order(row: dict[str, Any]) -> tuple[int, int, str]:
+def _order(row: dict[str, Any]) -> tuple[int, int, str, str]:
     suite, index = row["task"].split("/")
     suites = list(SUITES)
-    return suites.index(suite) if suite in suites else len(suites), int(index), row["backend"]
+    key = suites.index(suite) if suite in suites else len(suites)
+    return key, int(index), row["backend"], str(row.get("mujoco"))
 
 
 def format_table(rows: Sequence[dict[str, Any]]) -> str:
     """The agreement table in markdown."""
     lines = [
-        "| task | backend | seeds | LIBERO | mirror (diverged) | per-seed agreement | "
+        "| task | backend (MuJoCo) | seeds | LIBERO | mirror (diverged) | per-seed agreement | "
         "McNemar p | steps to success, mirror - LIBERO (median) |",
         "|---|---|---|---|---|---|---|---|",
     ]
@@ -185,7 +187,7 @@ def format_table(rows: Sequence[dict[str, Any]]) -> str:
         steps = r["steps_median_difference"]
         diverged = f" ({r['mirror_diverged']})" if r["mirror_diverged"] else ""
         lines.append(
-            f"| `{r['task']}` | {r['backend']} | {r['seeds']} | "
+            f"| `{r['task']}` | {r['backend']} ({r.get('mujoco') or '?'}) | {r['seeds']} | "
             f"{pct(r['libero_rate'], r['libero_ci'])} | "
             f"{pct(r['mirror_rate'], r['mirror_ci'])}{diverged} | {100 * r['agreement']:.1f}% | "
             f"{r['mcnemar_p']:.2g} | {'-' if steps is None else f'{steps:+g}'} |"

@@ -85,6 +85,7 @@ def agreement_row(
     host_envs: int = 8,
     protocol: str = "standard",
     mirror_envs: int | None = None,
+    contacts_per_env: int | None = None,
 ) -> tuple[dict[str, Any], EvalReport, EvalReport]:
     """`libero-expert` on seeds 0..seeds-1 of `task` on the mirror and on LIBERO: the table's
     row, and the two reports (LIBERO's first).
@@ -101,6 +102,7 @@ def agreement_row(
         "libero_mjx",
         "libero-expert",
         n_envs=min(mirror_envs or seeds, seeds),
+        contacts_per_env=contacts_per_env,
         n_episodes=seeds,
         backend=backend,
         options=scene_options,
@@ -214,6 +216,12 @@ def main(argv: Sequence[str] | None = None) -> None:
     ap.add_argument("--backend", default="c", help="the mirror's backend")
     ap.add_argument("--host-envs", type=int, default=8, help="LIBERO worker processes")
     ap.add_argument("--mirror-envs", type=int, default=None, help="the mirror's batch")
+    ap.add_argument(
+        "--contacts-per-env",
+        type=int,
+        default=None,
+        help="the mirror's warp contact buffer per env (libero_10/0 needs 512)",
+    )
     ap.add_argument("--protocol", choices=("standard", "sampled"), default="standard")
     ap.add_argument("--out", type=Path, default=None, help="JSON file for the rows")
     ap.add_argument(
@@ -233,7 +241,7 @@ def main(argv: Sequence[str] | None = None) -> None:
     rows = []
     for task in a.tasks:
         row, host, mirror = agreement_row(
-            task, a.seeds, a.backend, a.host_envs, a.protocol, a.mirror_envs
+            task, a.seeds, a.backend, a.host_envs, a.protocol, a.mirror_envs, a.contacts_per_env
         )
         rows.append(row)
         if a.reports is not None:

@@ -44,7 +44,7 @@ from openral_mjx.physics.mjx_backend import mjx
 from openral_mjx.policies import make_policy
 from openral_mjx.runner import run_seeds
 from openral_mjx.runner.compile_cache import enable_compilation_cache
-from openral_mjx.runner.episode import policy_state0, seed_keys
+from openral_mjx.runner.episode import control_step, policy_state0, seed_keys
 from openral_mjx.scenes import scene_options, scene_settings
 
 TASKS = ("libero_spatial/0", "libero_object/0", "libero_goal/1", "libero_10/0")
@@ -66,7 +66,8 @@ def raw_held(scene, n: int, steps: int) -> tuple[float, float, float]:
         d = jax.lax.scan(control_step, d, None, length=steps)[0]
         return jnp.all(jnp.isfinite(d.qpos))
 
-    return _timed(jax.jit(jax.vmap(one)), data, n * steps)
+    compile_s, rate, finite = _timed(jax.jit(jax.vmap(one)), (data,), n * steps)
+    return compile_s, rate, float(np.asarray(finite).mean())
 
 
 def recorded_controls(scene, policy, n: int, steps: int):
@@ -80,12 +81,11 @@ def recorded_controls(scene, policy, n: int, steps: int):
         state, settle = jax.vmap(scene.reset_controls)(init)
         pstate = policy_state0(policy, state.obs, n)
 
-        def body(carry, t):
+        def body(carry, t):  # the runner's control step, recording the controls
             state, pstate = carry
-            keys = jax.vmap(jax.random.fold_in)(policy_keys, jnp.broadcast_to(t, (n,)))
-            act = jax.vmap(policy.act, in_axes=(None, 0, 0, 0))
-            action, pstate = act(None, pstate, state.obs, keys)
-            state, ctrls = jax.vmap(scene.step_controls)(state, action)
+            (state, ctrls), pstate, _ = control_step(
+                scene, policy, None, state, pstate, policy_keys, t, step=scene.step_controls
+            )
             return (state, pstate), ctrls
 
         (last, _), ctrls = jax.lax.scan(body, (state, pstate), jnp.arange(steps))
@@ -115,7 +115,7 @@ def raw_replay(
         return jax.lax.scan(control_step, d, u)[0].qpos
 
     compile_s, rate, qpos = _timed(
-        jax.jit(jax.vmap(one)), (start.data, start.fields, ctrls), n * steps, splat=True
+        jax.jit(jax.vmap(one)), (start.data, start.fields, ctrls), n * steps
     )
     qpos = np.asarray(qpos)
     finite = np.all(np.isfinite(qpos), axis=1)
@@ -124,18 +124,14 @@ def raw_replay(
     return compile_s, rate, float(finite.mean()), error
 
 
-def _timed(fn, args, credited: int, splat: bool = False):
+def _timed(fn, args: tuple, credited: int):
     """(compile s, `credited` control steps per second of one run, its output) of `fn`."""
-    args = args if splat else (args,)
     t = time.perf_counter()
     compiled = fn.lower(*args).compile()
     compile_s = time.perf_counter() - t
     t = time.perf_counter()
     out = jax.block_until_ready(compiled(*args))
-    rate = credited / (time.perf_counter() - t)
-    if splat:
-        return compile_s, rate, out
-    return compile_s, rate, float(np.asarray(out).mean())
+    return compile_s, credited / (time.perf_counter() - t), out
 
 
 def main() -> None:

@@ -98,16 +98,17 @@ def control_step(
     pstate: Any,
     policy_keys: jax.Array,
     t: jax.Array,
-) -> tuple[State, Any, jax.Array]:
+    step: Callable[[State, jax.Array], Any] | None = None,
+) -> tuple[Any, Any, jax.Array]:
     """One control step of a batch: each env's action from its key stream at its episode step
-    `t` (a scalar, or one per env), then the scene's step. Returns (state, policy state,
-    action)."""
+    `t` (a scalar, or one per env), then the scene's step (or `step`, one env's, vmapped
+    here: what it returns takes the state's place). Returns (state, policy state, action)."""
     t = jnp.broadcast_to(t, policy_keys.shape[:1])
     step_keys = jax.vmap(jax.random.fold_in)(policy_keys, t)
     action, new_pstate = jax.vmap(policy.act, in_axes=(None, 0, 0, 0))(
         params, pstate, state.obs, step_keys
     )
-    return jax.vmap(scene.traced.step)(state, action), new_pstate, action
+    return jax.vmap(step or scene.traced.step)(state, action), new_pstate, action
 
 
 def accumulate(

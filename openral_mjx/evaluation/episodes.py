@@ -56,7 +56,7 @@ def episode_results(
     steps = arrays["steps"].tolist()
     success = arrays["success"].tolist()
     diverged = arrays["diverged"].tolist()
-    overflowed = arrays["overflowed"].tolist() if "overflowed" in arrays else [False] * len(seeds)
+    overflowed = arrays["overflowed"].tolist()
     first = arrays["first_success_step"].tolist()
     results = []
     for i, seed in enumerate(seeds.tolist()):

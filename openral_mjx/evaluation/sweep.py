@@ -267,6 +267,7 @@ def _point(value: float, r: EvalReport, success: np.ndarray) -> SweepPoint:
         diverged=r.diverged,
         episodes_per_s=r.episodes_per_s,
         outcomes="".join("1" if s else "0" for s in success),
+        overflowed=r.overflowed,
     )
 
 

@@ -22,17 +22,24 @@ from openral_mjx.report.io import check_readable
 from openral_mjx.report.schema import ClusterInfo, PartialInfo
 from openral_mjx.report.validation import STRICT, Count, Fraction, check, validate_data
 
-SWEEP_SCHEMA_VERSION = "openral_mjx.sweep/3"
+SWEEP_SCHEMA_VERSION = "openral_mjx.sweep/4"
 # /2 added `partial` (an interrupted sweep's finished points) and `mujoco_warnings`; a /1
 # report reads with None and {}. /3 added `cluster` (where each point ran on a Ray cluster),
-# None when read from /1 or /2.
-READABLE_SWEEP_VERSIONS = ("openral_mjx.sweep/1", "openral_mjx.sweep/2", SWEEP_SCHEMA_VERSION)
+# None when read from /1 or /2. /4 added each point's `overflowed` (its diverged episodes whose
+# engine buffers ran out, as the eval report's), 0 when read from /1-/3.
+READABLE_SWEEP_VERSIONS = (
+    "openral_mjx.sweep/1",
+    "openral_mjx.sweep/2",
+    "openral_mjx.sweep/3",
+    SWEEP_SCHEMA_VERSION,
+)
 
 
 @dataclasses.dataclass
 class SweepPoint:
-    """One grid value: the run's rate, its 95% Wilson interval, and per seed (in seed order)
-    "1" for a success and "0" otherwise."""
+    """One grid value: the run's rate, its 95% Wilson interval, its diverged episodes (and of
+    them, `overflowed`: those whose engine buffers ran out), and per seed (in seed order) "1"
+    for a success and "0" otherwise."""
 
     __pydantic_config__: ClassVar[ConfigDict] = STRICT
 
@@ -45,6 +52,7 @@ class SweepPoint:
     diverged: Count
     episodes_per_s: float
     outcomes: str
+    overflowed: Count = 0
 
 
 @dataclasses.dataclass
@@ -122,6 +130,7 @@ class SweepReport:
             check(len(p.outcomes) == p.n_episodes, f"{where}.outcomes is not n_episodes long")
             check(p.outcomes.count("1") == p.successes, f"{where}.successes != its outcomes")
             check(p.n_episodes == report.n_episodes, f"{where}.n_episodes != n_episodes")
+            check(p.overflowed <= p.diverged, f"{where}.overflowed > its diverged")
         return report
 
     def summary(self) -> str:
@@ -134,6 +143,7 @@ class SweepReport:
                 f"  {self.factor} = {p.value:<10g} success {100 * p.success_rate:5.1f}% "
                 f"[{100 * p.ci_low:5.1f}, {100 * p.ci_high:5.1f}]  {p.successes}/{p.n_episodes}"
                 + (f", {p.diverged} diverged" if p.diverged else "")
+                + (f" ({p.overflowed} from full physics buffers)" if p.overflowed else "")
             )
         for s in self.steps:
             mark = "significant" if s.significant else "not significant"

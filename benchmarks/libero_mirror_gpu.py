@@ -124,6 +124,13 @@ def raw_replay(
     return compile_s, rate, float(finite.mean()), error
 
 
+def _peak_gb() -> float | None:
+    """The JAX allocator's peak bytes in use on the first device so far, in GB."""
+    stats = jax.devices()[0].memory_stats() or {}
+    peak = stats.get("peak_bytes_in_use")
+    return None if peak is None else round(peak / 1e9, 2)
+
+
 def _timed(fn, args: tuple, credited: int):
     """(compile s, `credited` control steps per second of one run, its output) of `fn`."""
     t = time.perf_counter()
@@ -142,6 +149,11 @@ def main() -> None:
     ap.add_argument("--backend", default="warp")
     ap.add_argument("--contacts-per-env", type=int, default=None)
     ap.add_argument("--ccd-contacts-per-env", type=int, default=None)
+    ap.add_argument(
+        "--evaluator-only",
+        action="store_true",
+        help="time the evaluator alone (no replay, no held run): one compile, not three",
+    )
     ap.add_argument("--out", required=True)
     a = ap.parse_args()
     enable_compilation_cache()
@@ -164,6 +176,9 @@ def main() -> None:
             except Exception as e:  # an OOM at one size keeps the other sizes' rows
                 row = {"task": task, "backend": a.backend, "n_envs": n, "error": str(e)[:300]}
             row["build_s"] = round(build_s, 1)
+            # the process's peak so far (JAX keeps no per-row peak): with --ns ascending, the
+            # row of the largest batch holds that batch's peak
+            row["peak_gpu_gb_so_far"] = _peak_gb()
             rows.append(row)
             print(json.dumps(row), flush=True)
             out = {"device": str(jax.devices()[0].device_kind), "rows": rows}
@@ -175,10 +190,6 @@ def measure(scene, policy, task: str, n: int, a: argparse.Namespace) -> dict:
     """One row: evaluator and raw physics of `task` at `n` envs."""
     arrays, timing = run_seeds(scene, policy, None, seeds=np.arange(n), n_envs=n, max_steps=a.steps)
     evaluator = timing.n_envs * timing.scan_steps / timing.run_s
-    ctrls, qpos_end, whole = recorded_controls(scene, policy, n, a.steps)
-    raw_compile, raw, finite, error = raw_replay(scene, n, a.steps, ctrls, qpos_end, whole)
-    del ctrls
-    held_compile, held, held_finite = raw_held(scene, n, a.steps)
     row = {
         "task": task,
         "backend": a.backend,
@@ -189,6 +200,14 @@ def measure(scene, policy, task: str, n: int, a: argparse.Namespace) -> dict:
         "evaluator_diverged": int(np.asarray(arrays["diverged"]).sum()),
         "contacts_per_env": scene.backend.settings.contacts_per_env,
         "ccd_contacts_per_env": scene.backend.settings.ccd_contacts_per_env,
+    }
+    if a.evaluator_only:
+        return row
+    ctrls, qpos_end, whole = recorded_controls(scene, policy, n, a.steps)
+    raw_compile, raw, finite, error = raw_replay(scene, n, a.steps, ctrls, qpos_end, whole)
+    del ctrls
+    held_compile, held, held_finite = raw_held(scene, n, a.steps)
+    row |= {
         "raw_compile_s": round(raw_compile, 1),
         "raw_steps_per_s": round(raw),
         "raw_finite_share": finite,

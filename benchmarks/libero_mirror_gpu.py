@@ -154,6 +154,9 @@ def main() -> None:
         action="store_true",
         help="time the evaluator alone (no replay, no held run): one compile, not three",
     )
+    ap.add_argument(
+        "--skip-held", action="store_true", help="leave out the held raw run (raw_held_*)"
+    )
     ap.add_argument("--out", required=True)
     a = ap.parse_args()
     enable_compilation_cache()
@@ -206,13 +209,17 @@ def measure(scene, policy, task: str, n: int, a: argparse.Namespace) -> dict:
     ctrls, qpos_end, whole = recorded_controls(scene, policy, n, a.steps)
     raw_compile, raw, finite, error = raw_replay(scene, n, a.steps, ctrls, qpos_end, whole)
     del ctrls
-    held_compile, held, held_finite = raw_held(scene, n, a.steps)
     row |= {
         "raw_compile_s": round(raw_compile, 1),
         "raw_steps_per_s": round(raw),
         "raw_finite_share": finite,
         "replay_qpos_max_error": error,
         "evaluator_over_raw": round(evaluator / raw, 3),
+    }
+    if a.skip_held:
+        return row
+    held_compile, held, held_finite = raw_held(scene, n, a.steps)
+    row |= {
         "raw_held_compile_s": round(held_compile, 1),
         "raw_held_steps_per_s": round(held),
         "raw_held_finite_share": held_finite,

@@ -124,6 +124,22 @@ def raw_replay(
     return compile_s, rate, float(finite.mean()), error
 
 
+def release_warp_graphs() -> None:
+    """Free the CUDA graphs MuJoCo-Warp's JAX callables captured so far, and their memory.
+
+    Warp captures a graph per distinct set of buffer addresses a callable is called with
+    (up to 32 per callable), each owning the temporaries it allocated: at 16,384 envs with
+    128 CCD slots per env one of them is 4.6 GB. The evaluator's program, the recording
+    run's and the replay's each call the step with their own buffers, so without this the
+    replay found no room (2026-12-02). A later call of a cleared program captures again."""
+    jax.clear_caches()
+    try:
+        import warp as wp
+    except ImportError:
+        return
+    wp.clear_jax_callable_graph_cache()
+
+
 def _peak_gb() -> float | None:
     """The JAX allocator's peak bytes in use on the first device so far, in GB."""
     stats = jax.devices()[0].memory_stats() or {}
@@ -206,9 +222,15 @@ def measure(scene, policy, task: str, n: int, a: argparse.Namespace) -> dict:
     }
     if a.evaluator_only:
         return row
+    release_warp_graphs()
     ctrls, qpos_end, whole = recorded_controls(scene, policy, n, a.steps)
-    raw_compile, raw, finite, error = raw_replay(scene, n, a.steps, ctrls, qpos_end, whole)
+    release_warp_graphs()
+    try:
+        raw_compile, raw, finite, error = raw_replay(scene, n, a.steps, ctrls, qpos_end, whole)
+    except Exception as e:  # out of memory at this size: keep the evaluator's figures
+        return row | {"raw_error": str(e)[:300]}
     del ctrls
+    release_warp_graphs()
     row |= {
         "raw_compile_s": round(raw_compile, 1),
         "raw_steps_per_s": round(raw),

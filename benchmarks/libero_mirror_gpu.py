@@ -40,6 +40,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from openral_mjx.benchmarks.libero.mirror import LiberoMjx
+from openral_mjx.physics import release_warp_graphs
 from openral_mjx.physics.mjx_backend import mjx
 from openral_mjx.policies import make_policy
 from openral_mjx.runner import run_seeds
@@ -124,22 +125,6 @@ def raw_replay(
     return compile_s, rate, float(finite.mean()), error
 
 
-def release_warp_graphs() -> None:
-    """Free the CUDA graphs MuJoCo-Warp's JAX callables captured so far, and their memory.
-
-    Warp captures a graph per distinct set of buffer addresses a callable is called with
-    (up to 32 per callable), each owning the temporaries it allocated: at 16,384 envs with
-    128 CCD slots per env one of them is 4.6 GB. The evaluator's program, the recording
-    run's and the replay's each call the step with their own buffers, so without this the
-    replay found no room (2026-12-02). A later call of a cleared program captures again."""
-    jax.clear_caches()
-    try:
-        import warp as wp
-    except ImportError:
-        return
-    wp.clear_jax_callable_graph_cache()
-
-
 def _peak_gb() -> float | None:
     """The JAX allocator's peak bytes in use on the first device so far, in GB."""
     stats = jax.devices()[0].memory_stats() or {}
@@ -222,6 +207,8 @@ def measure(scene, policy, task: str, n: int, a: argparse.Namespace) -> dict:
     }
     if a.evaluator_only:
         return row
+    # each run's program holds Warp's graphs of its own buffers: 4.6 GB apiece at 16,384 envs
+    # with 128 CCD slots, which left the replay no room (2026-12-02)
     release_warp_graphs()
     ctrls, qpos_end, whole = recorded_controls(scene, policy, n, a.steps)
     release_warp_graphs()

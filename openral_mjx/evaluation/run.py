@@ -21,6 +21,7 @@ from openral_mjx.evaluation.partial import Interrupted, add_by_key
 from openral_mjx.evaluation.provenance import device_description, package_versions
 from openral_mjx.evaluation.sequential import PairedRule, SequentialRule
 from openral_mjx.evaluation.spec import RunSpec
+from openral_mjx.physics import release_warp_graphs
 from openral_mjx.physics.mj_warnings import count_warnings
 from openral_mjx.policies import Policy, make_policy
 from openral_mjx.policies.lerobot import implied_camera_options
@@ -115,7 +116,12 @@ class Evaluation:
     )
 
     def close(self) -> None:
-        self.resources.close()
+        """Release what the run built, and the CUDA graphs Warp captured for its programs
+        (`physics.release_warp_graphs`: device memory a next run in this process needs)."""
+        try:
+            self.resources.close()
+        finally:
+            release_warp_graphs()
 
     def __enter__(self) -> Evaluation:
         return self

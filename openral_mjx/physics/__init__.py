@@ -20,6 +20,7 @@ from openral_mjx.physics.base import (
     PhysicsState,
     Quantities,
     QuantitySpec,
+    release_warp_graphs,
     warp_installed,
 )
 from openral_mjx.physics.c_backend import CBackend
@@ -85,5 +86,6 @@ __all__ = [
     "QuantitySpec",
     "WarpBackend",
     "make_backend",
+    "release_warp_graphs",
     "resolve_backend_name",
 ]

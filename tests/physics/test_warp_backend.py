@@ -73,3 +73,31 @@ def test_convex_contact_capacity_is_part_of_the_contact_capacity():
         PhysicsSettings(contacts_per_env=8, ccd_contacts_per_env=9)
     with pytest.raises(ConfigError, match="ccd_contacts_per_env must be >= 1, got 0"):
         PhysicsSettings(ccd_contacts_per_env=0)
+
+
+def test_a_finished_run_frees_warps_captured_graphs(push_warp, monkeypatch):
+    """Warp keeps a CUDA graph, with its device temporaries, per buffer set each callable
+    meets; a closed evaluation drops them so the next run in the process has the memory
+    (here on the CPU, where Warp captures none, a stand-in entry in each callable's cache)."""
+    from warp._src.jax import ffi
+
+    from openral_mjx.evaluation import run as run_module
+    from openral_mjx.physics import release_warp_graphs
+
+    state = jax.jit(jax.vmap(push_warp.reset))(jax.vmap(jax.random.PRNGKey)(jnp.arange(2)))
+    jax.jit(jax.vmap(push_warp.step))(state, jnp.zeros((2, push_warp.action_size)))
+    callables = list(ffi._FFI_CALLABLE_REGISTRY.values())
+    assert callables  # the step went through Warp's JAX callables
+    for c in callables:
+        c.captures["stand-in"] = object()
+    release_warp_graphs()
+    assert all(not c.captures for c in callables)
+
+    released = []
+    monkeypatch.setattr(run_module, "release_warp_graphs", lambda: released.append(1))
+    ev = run_module.run_evaluation(
+        "tabletop_push", "zero", n_envs=2, n_episodes=2, max_steps=2, backend="c", threads=1
+    )
+    with ev:
+        assert not released  # the run's programs may still be used (videos) until closed
+    assert released == [1]

@@ -2,7 +2,10 @@
 
 - `libero_reference`: LIBERO's env for a task in a worker process, to replay actions from an
   initial state and to judge states by its own goal predicates (the tests' oracle).
-- `agreement_table`: `libero-expert` closed loop on the same seeds of each task, on the mirror
+- `replay_row`: `libero-expert`'s episode on the mirror, its actions replayed on LIBERO from
+  the same initial state: how far the hand, the objects, the fixtures' joints and the arm
+  part, worst over the episode (issue 37's "same actions, same trajectories", per task).
+- `agreement_row`: `libero-expert` closed loop on the same seeds of each task, on the mirror
   (`libero_mjx`, any backend) and on LIBERO through the host adapter, as a user would run
   them, compared seed by seed (`compare_reports`): both rates with their intervals, per-seed
   agreement, exact McNemar, and the median difference in steps to success.
@@ -11,6 +14,8 @@
 prints the table (markdown) and writes it as JSON with ``--out``; ``--protocol sampled`` runs
 the mass-seed protocol's draws, ``--reports DIR`` keeps both reports of each task.
 ``--from-reports DIR/*.json`` runs nothing: the table of stored reports (`rows_from_reports`).
+``--replay`` (with ``--tasks`` or ``--suite``) prints `replay_row`'s table instead, for the
+tasks the expert covers.
 """
 
 from __future__ import annotations
@@ -23,15 +28,20 @@ from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
+import jax
+import jax.numpy as jnp
+import mujoco
 import numpy as np
 
 from openral_mjx.benchmarks.libero.assets import TIMEOUT_S, task_worker
 from openral_mjx.benchmarks.libero.expert import coverage
 from openral_mjx.benchmarks.libero.host_scene import SUITES
+from openral_mjx.benchmarks.libero.mirror import LiberoMjx, LiberoMjxOptions
 from openral_mjx.core.errors import ConfigError
 from openral_mjx.core.files import write_text_atomic
 from openral_mjx.evaluation import evaluate
 from openral_mjx.host.pool import Worker
+from openral_mjx.policies import make_policy
 from openral_mjx.report import EvalReport, load_report, save_report
 from openral_mjx.scenes import seed_cycles, seed_options
 from openral_mjx.stats import compare_reports
@@ -117,6 +127,114 @@ def agreement_row(
     return comparison_row(host, mirror), host, mirror
 
 
+def expert_episode(scene: LiberoMjx, seed: int = 0) -> dict[str, Any]:
+    """`libero-expert`'s episode of `seed` on `scene`, one env, until it ends or the task's
+    step limit: its actions (T, 7), observations and joint positions at steps 0..T, and the
+    control step it succeeded at (None if it did not)."""
+    policy = make_policy("libero-expert", scene)
+    _, pstate = policy.init(jax.random.PRNGKey(0), None)
+    reset, step, act = jax.jit(scene.reset_with_seed), jax.jit(scene.step), jax.jit(policy.act)
+    state = reset(jnp.int32(seed), jax.random.PRNGKey(seed))
+    actions, obs = [], [np.asarray(state.obs)]
+    qpos = [np.asarray(state.physics.quantities.qpos)]
+    success = None
+    for t in range(scene.max_steps):
+        action, pstate = act(None, pstate, state.obs, jax.random.PRNGKey(t))
+        state = step(state, action)
+        actions.append(np.asarray(action))
+        obs.append(np.asarray(state.obs))
+        qpos.append(np.asarray(state.physics.quantities.qpos))
+        if bool(state.done):
+            success = t + 1 if bool(state.metrics["success"]) else None
+            break
+    return {
+        "actions": np.stack(actions),
+        "obs": np.stack(obs),
+        "qpos": np.stack(qpos),
+        "success_step": success,
+    }
+
+
+def joint_groups(scene: LiberoMjx) -> dict[str, Any]:
+    """Where to read each kind of joint in the task's ``qpos``: the arm's joints, each free
+    object's position (name -> its 3 indices) and the other fixtures' hinge and slide
+    joints."""
+    m = scene.mj_model
+    meta = scene.export.meta
+    robot = set(meta["arm_joints"]) | set(meta["gripper_joints"])
+    arm = [int(m.joint(n).qposadr[0]) for n in meta["arm_joints"]]
+    objects: dict[str, list[int]] = {}
+    fixtures: list[int] = []
+    for j in range(m.njnt):
+        name, adr = m.joint(j).name, int(m.jnt_qposadr[j])
+        if name in robot:
+            continue
+        if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE:
+            objects[m.body(int(m.jnt_bodyid[j])).name] = [adr, adr + 1, adr + 2]
+        elif m.jnt_type[j] in (mujoco.mjtJoint.mjJNT_HINGE, mujoco.mjtJoint.mjJNT_SLIDE):
+            fixtures.append(adr)
+    return {"arm": arm, "objects": objects, "fixtures": fixtures}
+
+
+def replay_row(task: str, seed: int = 0, backend: str = "c") -> dict[str, Any]:
+    """`libero-expert`'s episode of `seed` (LIBERO's initial state ``seed mod 50``) on the
+    mirror, its actions replayed on LIBERO: the control step each side succeeded at, and
+    the largest difference over the episode of the hand's position (m), of each free
+    object's position (m; the worst object named), of the articulated fixtures' joints (m or
+    rad) and of the arm's joints (rad). Open loop on LIBERO's side: a difference that grows
+    is not corrected as closed loop would."""
+    scene = LiberoMjx(LiberoMjxOptions(task=task), backend=backend)
+    episode = expert_episode(scene, seed)
+    with libero_reference(task) as libero:
+        ref = libero.rollout(seed % scene.n_init_states, episode["actions"])
+    groups = joint_groups(scene)
+    mirror_q, libero_q = episode["qpos"], np.asarray(ref["qpos"])
+    hand = np.abs(episode["obs"][:, :3] - np.asarray(ref["state"])[:, :3]).max()
+    per_object = {
+        name: float(np.linalg.norm(mirror_q[:, idx] - libero_q[:, idx], axis=1).max())
+        for name, idx in groups["objects"].items()
+    }
+    worst = max(per_object, key=per_object.get) if per_object else None
+    fixtures = groups["fixtures"]
+    libero_success = np.flatnonzero(np.asarray(ref["success"]))
+    return {
+        "task": task,
+        "coverage": coverage(task),
+        "backend": backend,
+        "seed": seed,
+        "steps": len(episode["actions"]),
+        "mirror_success_step": episode["success_step"],
+        "libero_success_step": int(libero_success[0]) if libero_success.size else None,
+        "hand_max_m": float(hand),
+        "object_max_m": per_object[worst] if worst else None,
+        "worst_object": worst,
+        "fixture_joint_max": (
+            float(np.abs(mirror_q[:, fixtures] - libero_q[:, fixtures]).max()) if fixtures else None
+        ),
+        "arm_joint_max_rad": float(
+            np.abs(mirror_q[:, groups["arm"]] - libero_q[:, groups["arm"]]).max()
+        ),
+    }
+
+
+def format_replay_table(rows: Sequence[dict[str, Any]]) -> str:
+    """`replay_row`s in markdown."""
+    lines = [
+        "| task | expert | steps | success step, mirror / LIBERO | hand | worst object | "
+        "fixture joints | arm joints (rad) |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    g = lambda v: "-" if v is None else f"{v:.1e}"  # noqa: E731
+    for r in rows:
+        obj = "-" if r["worst_object"] is None else f"{g(r['object_max_m'])} ({r['worst_object']})"
+        steps = f"{r['mirror_success_step'] or '-'} / {r['libero_success_step'] or '-'}"
+        lines.append(
+            f"| `{r['task']}` | {r['coverage']} | {r['steps']} | {steps} | {g(r['hand_max_m'])} "
+            f"| {obj} | {g(r['fixture_joint_max'])} | {g(r['arm_joint_max_rad'])} |"
+        )
+    return "\n".join(lines)
+
+
 def comparison_row(host: EvalReport, mirror: EvalReport) -> dict[str, Any]:
     """The agreement table's row of a LIBERO report against a mirror report of one task,
     paired seed by seed (`compare_reports`; seeds below both draw counts where those differ)."""
@@ -197,13 +315,25 @@ def format_table(rows: Sequence[dict[str, Any]]) -> str:
     return "\n".join(lines)
 
 
+def suite_tasks(suite: str) -> list[str]:
+    """The tasks of LIBERO suite `suite` the expert covers (wholly or partly), in order."""
+    if suite not in SUITES:
+        raise ConfigError(f"unknown LIBERO suite {suite!r}; valid: {', '.join(SUITES)}")
+    tasks = (f"{suite}/{i}" for i in range(SUITES[suite][0]))
+    return [t for t in tasks if coverage(t) != "not covered"]
+
+
 def main(argv: Sequence[str] | None = None) -> None:
     ap = argparse.ArgumentParser(
         prog="python -m openral_mjx.benchmarks.libero.agreement",
-        description="libero-expert closed loop on the mirror and on LIBERO, seed by seed.",
+        description="libero-expert on the mirror and on LIBERO: closed loop seed by seed, or "
+        "(--replay) its actions on the mirror replayed on LIBERO.",
     )
     what = ap.add_mutually_exclusive_group(required=True)
     what.add_argument("--tasks", nargs="+", help="SUITE/INDEX ...: run both scenes")
+    what.add_argument(
+        "--suite", help=f"the tasks the expert covers of one suite ({', '.join(SUITES)})"
+    )
     what.add_argument(
         "--from-reports",
         nargs="+",
@@ -212,6 +342,13 @@ def main(argv: Sequence[str] | None = None) -> None:
         help="no runs: the table of stored reports of both scenes (each mirror report against "
         "its task's latest LIBERO report)",
     )
+    ap.add_argument(
+        "--replay",
+        action="store_true",
+        help="per task, the expert's episode of --replay-seed on the mirror replayed action for "
+        "action on LIBERO: how far hand, objects, fixtures and arm part (no closed loop)",
+    )
+    ap.add_argument("--replay-seed", type=int, default=0, help="the replayed episode's seed")
     ap.add_argument("--seeds", type=int, default=200)
     ap.add_argument("--backend", default="c", help="the mirror's backend")
     ap.add_argument("--host-envs", type=int, default=8, help="LIBERO worker processes")
@@ -228,30 +365,35 @@ def main(argv: Sequence[str] | None = None) -> None:
         "--reports", type=Path, default=None, help="folder for both reports of each task"
     )
     a = ap.parse_args(argv)
-    if a.from_reports is not None:
-        try:
+    try:
+        if a.from_reports is not None:
             rows = rows_from_reports(a.from_reports)
-        except ConfigError as e:  # a bad or unpaired report: one line, exit 2
-            print(f"error: {e}", file=sys.stderr)
-            raise SystemExit(2) from None
-        if a.out is not None:
-            write_text_atomic(a.out, json.dumps(rows, indent=1))
-        print(format_table(rows))
-        return
+            if a.out is not None:
+                write_text_atomic(a.out, json.dumps(rows, indent=1))
+            print(format_table(rows))
+            return
+        tasks = a.tasks or suite_tasks(a.suite)
+    except ConfigError as e:  # a bad or unpaired report, an unknown suite: one line, exit 2
+        print(f"error: {e}", file=sys.stderr)
+        raise SystemExit(2) from None
+    table = format_replay_table if a.replay else format_table
     rows = []
-    for task in a.tasks:
-        row, host, mirror = agreement_row(
-            task, a.seeds, a.backend, a.host_envs, a.protocol, a.mirror_envs, a.contacts_per_env
-        )
+    for task in tasks:
+        if a.replay:
+            row = replay_row(task, a.replay_seed, a.backend)
+        else:
+            row, host, mirror = agreement_row(
+                task, a.seeds, a.backend, a.host_envs, a.protocol, a.mirror_envs, a.contacts_per_env
+            )
+            if a.reports is not None:
+                name = task.replace("/", "_")
+                save_report(host, a.reports / f"{name}_libero.json")
+                save_report(mirror, a.reports / f"{name}_mirror_{a.backend}.json")
         rows.append(row)
-        if a.reports is not None:
-            name = task.replace("/", "_")
-            save_report(host, a.reports / f"{name}_libero.json")
-            save_report(mirror, a.reports / f"{name}_mirror_{a.backend}.json")
-        print(format_table([row]).splitlines()[-1], flush=True)
-        if a.out is not None:
+        print(table([row]).splitlines()[-1], flush=True)
+        if a.out is not None:  # after every task: an interrupted run keeps its rows
             write_text_atomic(a.out, json.dumps(rows, indent=1))
-    print(format_table(rows))
+    print(table(rows))
 
 
 if __name__ == "__main__":

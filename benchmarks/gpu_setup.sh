@@ -57,6 +57,13 @@ if [ -d .libero_models ] && [ ! -f "$OPENRAL_MJX_LIBERO_MODELS/.copied" ]; then
   mkdir -p "$OPENRAL_MJX_LIBERO_MODELS" && cp -r .libero_models/. "$OPENRAL_MJX_LIBERO_MODELS/" \
     && touch "$OPENRAL_MJX_LIBERO_MODELS/.copied"
 fi
+# ... or packed as .lm/models.tar.xz (benchmarks/libero_models_tar.sh: the tasks' exports with
+# their files and draws, a few MB), unpacked there once per archive.
+if [ -f .lm/models.tar.xz ] && [ ! -f "$OPENRAL_MJX_LIBERO_MODELS/.lm-$(sha256sum < .lm/models.tar.xz | cut -c1-12)" ]; then
+  mkdir -p "$OPENRAL_MJX_LIBERO_MODELS" \
+    && tar xJf .lm/models.tar.xz -C "$OPENRAL_MJX_LIBERO_MODELS" --strip-components=1 \
+    && touch "$OPENRAL_MJX_LIBERO_MODELS/.lm-$(sha256sum < .lm/models.tar.xz | cut -c1-12)"
+fi
 for d in .vis*; do
   [ -d "$d" ] || continue
   for a in "$d"/*.tar.xz; do

@@ -59,10 +59,11 @@ if [ -d .libero_models ] && [ ! -f "$OPENRAL_MJX_LIBERO_MODELS/.copied" ]; then
 fi
 # ... or packed as .lm/models.tar.xz (benchmarks/libero_models_tar.sh: the tasks' exports with
 # their files and draws, a few MB), unpacked there once per archive.
-if [ -f .lm/models.tar.xz ] && [ ! -f "$OPENRAL_MJX_LIBERO_MODELS/.lm-$(sha256sum < .lm/models.tar.xz | cut -c1-12)" ]; then
-  mkdir -p "$OPENRAL_MJX_LIBERO_MODELS" \
+if [ -f .lm/models.tar.xz ]; then
+  lm_done="$OPENRAL_MJX_LIBERO_MODELS/.lm-$(sha256sum < .lm/models.tar.xz | cut -c1-12)"
+  [ -f "$lm_done" ] || { mkdir -p "$OPENRAL_MJX_LIBERO_MODELS" \
     && tar xJf .lm/models.tar.xz -C "$OPENRAL_MJX_LIBERO_MODELS" --strip-components=1 \
-    && touch "$OPENRAL_MJX_LIBERO_MODELS/.lm-$(sha256sum < .lm/models.tar.xz | cut -c1-12)"
+    && touch "$lm_done"; }
 fi
 for d in .vis*; do
   [ -d "$d" ] || continue

@@ -43,7 +43,7 @@ from openral_mjx.evaluation import evaluate
 from openral_mjx.host.pool import Worker
 from openral_mjx.policies import make_policy
 from openral_mjx.report import EvalReport, load_report, save_report
-from openral_mjx.scenes import seed_cycles, seed_options
+from openral_mjx.scenes import scene_suite, seed_cycles, seed_options
 from openral_mjx.stats import compare_reports
 
 
@@ -316,11 +316,9 @@ def format_table(rows: Sequence[dict[str, Any]]) -> str:
 
 
 def suite_tasks(suite: str) -> list[str]:
-    """The tasks of LIBERO suite `suite` the expert covers (wholly or partly), in order."""
-    if suite not in SUITES:
-        raise ConfigError(f"unknown LIBERO suite {suite!r}; valid: {', '.join(SUITES)}")
-    tasks = (f"{suite}/{i}" for i in range(SUITES[suite][0]))
-    return [t for t in tasks if coverage(t) != "not covered"]
+    """The tasks of LIBERO suite `suite` (`scene_suite`'s names) the expert covers, wholly or
+    partly, in order."""
+    return [t for t in scene_suite("libero_mjx", suite) if coverage(t) != "not covered"]
 
 
 def main(argv: Sequence[str] | None = None) -> None:

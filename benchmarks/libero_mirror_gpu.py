@@ -40,7 +40,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from openral_mjx.benchmarks.libero.mirror import LiberoMjx
-from openral_mjx.physics import release_warp_graphs
+from openral_mjx.physics import WARP_GRAPHS, release_warp_graphs
 from openral_mjx.physics.mjx_backend import mjx
 from openral_mjx.policies import make_policy
 from openral_mjx.runner import run_seeds
@@ -151,6 +151,12 @@ def main() -> None:
     ap.add_argument("--contacts-per-env", type=int, default=None)
     ap.add_argument("--ccd-contacts-per-env", type=int, default=None)
     ap.add_argument(
+        "--warp-graphs",
+        choices=sorted(WARP_GRAPHS),
+        default=None,
+        help="Warp's CUDA-graph mode (PhysicsSettings.warp_graphs; default: MJX's)",
+    )
+    ap.add_argument(
         "--evaluator-only",
         action="store_true",
         help="time the evaluator alone (no replay, no held run): one compile, not three",
@@ -169,6 +175,7 @@ def main() -> None:
             a.contacts_per_env,
             batch_size=max(a.ns),
             ccd_contacts_per_env=a.ccd_contacts_per_env,
+            warp_graphs=a.warp_graphs,
         )
         options = scene_options("libero_mjx", {"task": task})
         scene = LiberoMjx(options, backend=a.backend, settings=settings)
@@ -204,6 +211,7 @@ def measure(scene, policy, task: str, n: int, a: argparse.Namespace) -> dict:
         "evaluator_diverged": int(np.asarray(arrays["diverged"]).sum()),
         "contacts_per_env": scene.backend.settings.contacts_per_env,
         "ccd_contacts_per_env": scene.backend.settings.ccd_contacts_per_env,
+        "warp_graphs": scene.backend.settings.warp_graphs,
     }
     if a.evaluator_only:
         return row

@@ -84,8 +84,16 @@ class EvalArgs:
     threads: int | None = None
     """Threads of the C backend (default: all cores)."""
     contacts_per_env: int | None = None
-    """Contact buffer per env of the warp backend (default 32); overflowing envs count as
-    diverged."""
+    """Contact buffer per env of the warp backend (default 32, or the scene's); overflowing
+    envs count as diverged."""
+    ccd_contacts_per_env: int | None = None
+    """Of those, how many may come from convex collision (GJK/EPA: meshes, cylinders), whose
+    working buffers are the largest per contact (default: all); lower it to fit bigger
+    batches of mesh-heavy scenes (LIBERO at 16,384 envs: 32-128)."""
+    warp_graphs: Literal["warp", "staged", "none"] | None = None
+    """How warp replays its calls as CUDA graphs (default: MJX's, warp): staged captures one
+    graph per call site instead of one per buffer set, each with its own copy of the call's
+    temporaries (use it when Warp cannot allocate at large batches); none uses no graphs."""
     devices: int | None = None
     """Shard envs over at most this many local devices (default: every GPU for mjx/warp)."""
     processes: int = 1

@@ -245,6 +245,8 @@ def _run_spec(args: EvalArgs, backend: str) -> RunSpec:
         backend=backend,
         threads=args.threads,
         contacts_per_env=args.contacts_per_env,
+        ccd_contacts_per_env=args.ccd_contacts_per_env,
+        warp_graphs=args.warp_graphs,
         devices=args.devices,
     )
 
@@ -390,6 +392,8 @@ def _reproduce(args: EvalArgs, backend: str, out: Path) -> str:
         ("--config", args.config),
         ("--threads", args.threads),
         ("--contacts-per-env", args.contacts_per_env),
+        ("--ccd-contacts-per-env", args.ccd_contacts_per_env),
+        ("--warp-graphs", args.warp_graphs),
         ("--devices", args.devices),
         ("--processes", args.processes if args.processes != 1 else None),
         ("--distributed", args.distributed),

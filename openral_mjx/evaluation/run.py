@@ -53,17 +53,26 @@ def build_scene(
     n_envs: int = 1024,
     threads: int | None = None,
     contacts_per_env: int | None = None,
+    ccd_contacts_per_env: int | None = None,
+    warp_graphs: str | None = None,
     devices: int | None = None,
     randomize: Sequence[str] = (),
 ) -> Scene:
-    """Scene `name` on `backend`, its buffers sized for batches of `n_envs`, on at most
-    `devices` devices (default: all the backend can use), with the `randomize` factors
-    (``NAME=LOW:HIGH``, see `scenes.randomization`) drawn per seed."""
+    """Scene `name` on `backend`, its buffers sized for batches of `n_envs` (`warp`'s contact
+    buffers and graph mode as `PhysicsSettings` takes them), on at most `devices` devices
+    (default: all the backend can use), with the `randomize` factors (``NAME=LOW:HIGH``, see
+    `scenes.randomization`) drawn per seed."""
     check_counts(n_envs, 1, 1)
     if devices is not None and devices < 1:
         raise ConfigError(f"devices must be >= 1, got {devices}")
     settings = scene_settings(
-        name, contacts_per_env, threads=threads, batch_size=n_envs, max_devices=devices
+        name,
+        contacts_per_env,
+        threads=threads,
+        batch_size=n_envs,
+        max_devices=devices,
+        ccd_contacts_per_env=ccd_contacts_per_env,
+        warp_graphs=warp_graphs,
     )
     scene = make_scene(name, options, backend=backend, settings=settings)
     return randomization.randomize(scene, randomize)
@@ -88,6 +97,8 @@ def build_spec_scene(
         n_envs=spec.n_envs,
         threads=spec.threads,
         contacts_per_env=spec.contacts_per_env,
+        ccd_contacts_per_env=spec.ccd_contacts_per_env,
+        warp_graphs=spec.warp_graphs,
         devices=spec.devices,
         randomize=randomize,
     )

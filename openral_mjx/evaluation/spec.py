@@ -12,18 +12,25 @@ import dataclasses
 
 from openral_mjx.core.errors import ConfigError
 from openral_mjx.evaluation.sequential import SequentialRule, sequential_rule
+from openral_mjx.physics.base import WARP_GRAPHS
 from openral_mjx.runner import MAX_STEPS, check_batching, check_counts, check_seeds
 
 FACTOR_BINS = 5  # equal-count bins per episode factor in a report's breakdown
 MAX_FACTOR_BINS = 1000
 # Upper bounds of the build settings, refused before anything is built: threads each start an
 # OS thread, a contact buffer is allocated per env, and no host has more devices.
-MAX_SETTING = {"devices": 4096, "threads": 4096, "contacts_per_env": 65536}
+MAX_SETTING = {
+    "devices": 4096,
+    "threads": 4096,
+    "contacts_per_env": 65536,
+    "ccd_contacts_per_env": 65536,
+}
 
 
 @dataclasses.dataclass(frozen=True)
 class RunSpec:
-    """What to build (`backend`, `n_envs`, `threads`, `contacts_per_env`, `devices`) and how
+    """What to build (`backend`, `n_envs`, `threads`, the `warp` buffers and graphs,
+    `devices`) and how
     to run it (episode counts, sequential target, seeds, steps, batching, breakdown bins);
     see `run_evaluation` for each. Construction raises `ConfigError` naming the first bad
     value, so a spec that exists is valid (the backend-specific batching check waits for a
@@ -42,6 +49,8 @@ class RunSpec:
     backend: str = "auto"
     threads: int | None = None
     contacts_per_env: int | None = None
+    ccd_contacts_per_env: int | None = None
+    warp_graphs: str | None = None
     devices: int | None = None
     command: str = ""
 
@@ -57,7 +66,11 @@ class RunSpec:
             raise ConfigError(
                 f"refill_every must be at most {MAX_STEPS:,}, got {self.refill_every}"
             )
-        for name in ("devices", "threads", "contacts_per_env"):
+        if self.warp_graphs is not None and self.warp_graphs not in WARP_GRAPHS:
+            raise ConfigError(
+                f"unknown warp_graphs {self.warp_graphs!r}; valid: {', '.join(WARP_GRAPHS)}"
+            )
+        for name in MAX_SETTING:
             value = getattr(self, name)
             if value is not None and value < 1:
                 raise ConfigError(f"{name} must be >= 1, got {value}")

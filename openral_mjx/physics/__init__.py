@@ -15,6 +15,7 @@ import mujoco
 
 from openral_mjx.core.errors import unknown
 from openral_mjx.physics.base import (
+    WARP_GRAPHS,
     PhysicsBackend,
     PhysicsSettings,
     PhysicsState,
@@ -77,6 +78,7 @@ def make_backend(
 
 __all__ = [
     "BACKEND_NAMES",
+    "WARP_GRAPHS",
     "CBackend",
     "MjxBackend",
     "PhysicsBackend",

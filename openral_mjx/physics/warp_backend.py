@@ -18,7 +18,13 @@ import numpy as np
 
 from openral_mjx.core.errors import ConfigError
 from openral_mjx.core.rotations import quat_to_mat
-from openral_mjx.physics.base import Quantities, all_finite, reference_qpos, warp_installed
+from openral_mjx.physics.base import (
+    WARP_GRAPHS,
+    Quantities,
+    all_finite,
+    reference_qpos,
+    warp_installed,
+)
 from openral_mjx.physics.cameras import SensorSpec, sensor_key
 from openral_mjx.physics.mjx_backend import MjxBackend, mjx, without_texels
 from openral_mjx.physics.warp_render import WarpCameras, renderable
@@ -79,15 +85,22 @@ class WarpBackend(MjxBackend):
             names = [f"cuda:{d.local_hardware_id}" for d in gpus] or None
             drawn = self.mx
             if self.physics_model is not self.mj_model:  # cameras see the visual meshes
-                drawn = without_texels(
-                    mjx.put_model(self.mj_model, impl="warp", device=self.home_device())
-                )
+                drawn = without_texels(self._warp_model(self.mj_model))
             self.cameras = WarpCameras(self.mj_model, drawn, self._render_specs, names)
 
     def _put_model(self) -> mjx.Model:
-        mx = super()._put_model()
+        mx = without_texels(self._warp_model(self.physics_model))
         opt_impl = mx.opt._impl.replace(warn_overflow=self._warn)
         return mx.replace(opt=mx.opt.replace(_impl=opt_impl))
+
+    def _warp_model(self, m: mujoco.MjModel) -> mjx.Model:
+        """`m` put on this backend's device with the settings' CUDA-graph mode."""
+        mode = None
+        if self.settings.warp_graphs is not None:
+            import warp  # installed: checked by _setup
+
+            mode = getattr(warp.JaxCallableGraphMode, WARP_GRAPHS[self.settings.warp_graphs])
+        return mjx.put_model(m, impl="warp", device=self.home_device(), graph_mode=mode)
 
     def _make_data(self) -> mjx.Data:
         return mjx.make_data(

@@ -101,3 +101,26 @@ def test_a_finished_run_frees_warps_captured_graphs(push_warp, monkeypatch):
     with ev:
         assert not released  # the run's programs may still be used (videos) until closed
     assert released == [1]
+
+
+def test_warp_graphs_reach_the_model_and_bad_ones_are_refused():
+    """`PhysicsSettings.warp_graphs` picks Warp's graph mode of the model MJX puts (the CLI's
+    `--warp-graphs`), unset keeps MJX's own choice, and a name outside `WARP_GRAPHS` is a
+    one-line ConfigError naming the valid ones, in the settings and in a run spec."""
+    import warp
+
+    from openral_mjx.evaluation.spec import RunSpec
+
+    staged = TabletopPush(
+        backend="warp", settings=PhysicsSettings(batch_size=1, warp_graphs="staged")
+    )
+    assert staged.backend.mx.opt._impl.graph_mode == warp.JaxCallableGraphMode.WARP_STAGED
+    default = TabletopPush(backend="warp", settings=PhysicsSettings(batch_size=1))
+    assert default.backend.mx.opt._impl.graph_mode == warp.JaxCallableGraphMode.JAX  # CPU's
+    for make in (lambda: PhysicsSettings(warp_graphs="cuda"), lambda: RunSpec(warp_graphs="cuda")):
+        with pytest.raises(
+            ConfigError, match="unknown warp_graphs 'cuda'; valid: warp, staged, none"
+        ):
+            make()
+    with pytest.raises(ConfigError, match="ccd_contacts_per_env must be at most 65,536"):
+        RunSpec(ccd_contacts_per_env=10**6)

@@ -10,20 +10,27 @@
 set -euo pipefail
 [ $# -gt 0 ] || { echo "usage: [DRAWS=N] bash $0 TASK..." >&2; exit 2; }
 grep -qx "/.lm/" .git/info/exclude 2>/dev/null || echo "/.lm/" >> .git/info/exclude
-.venv/bin/python - "${DRAWS:-0}" "$@" <<'EOF'
+# the tasks' folders and only the files/ their physics models read: files/ grows with every task
+# exported on this machine, and the visuals' textures are no physics
+mapfile -t paths < <(.venv/bin/python - "${DRAWS:-0}" "$@" <<'EOF'
 import sys
+from pathlib import Path
 
-from openral_mjx.benchmarks.libero.assets import load_sampled, load_task, physics_spec
+from openral_mjx.benchmarks.libero.assets import load_sampled, load_task, models_root, physics_spec
 
-draws = int(sys.argv[1])
+draws, root = int(sys.argv[1]), models_root()
+kept = set()
 for task in sys.argv[2:]:
-    physics_spec(load_task(task))  # the export, and the files/ its model reads
+    spec = physics_spec(load_task(task))  # the export, and the files/ its model reads
+    kept |= {a.file for a in [*spec.meshes, *spec.textures] if a.file}
     if draws:
         load_sampled(task, draws)
+    kept.add(str(root / task))
+for path in sorted(kept):
+    print(Path(path).relative_to(root.parent))
 EOF
+)
+[ ${#paths[@]} -gt 0 ] || exit 1
 root=$(.venv/bin/python -c "from openral_mjx.benchmarks.libero.assets import models_root; print(models_root())")
-dirs=(files)
-for t in "$@"; do dirs+=("$t"); done
-mkdir -p .lm && tar cJf .lm/models.tar.xz -C "$(dirname "$root")" \
-  "${dirs[@]/#/$(basename "$root")/}"
+mkdir -p .lm && tar cJf .lm/models.tar.xz -C "$(dirname "$root")" "${paths[@]}"
 du -sh .lm/models.tar.xz

@@ -403,6 +403,18 @@ json.dump(d, open(sys.argv[2], 'w'), indent=1)" "/tmp/libero_act_$s.json" "$out/
           "sampled_states=${N:-1024}" "n_workers=$k" "image_size=$size" "${opts[@]}"
       done
     done ;;
+  libero-agreement)  # issue 37: the expert's closed-loop agreement rows on this machine's cores:
+                     # TASKS x SEEDS (200) drawn states, LIBERO through the host adapter (one
+                     # worker per core) against the mirror on BACKEND (c, its threads on the
+                     # same cores), after gpu_setup.sh with .lh1-.lh3 and .gl carried. Exports
+                     # and draws are made here by LIBERO's worker where none were carried
+                     # (~25 s a task, ~2.5 s a draw per core); each task's row goes to
+                     # $out/rows_agreement.json as it ends, both reports to $out
+    python3 -m openral_mjx.benchmarks.libero.agreement --tasks ${TASKS:?TASKS} \
+      --seeds "${SEEDS:-200}" --protocol sampled --host-envs "$(nproc)" \
+      --mirror-envs "${MIRROR_ENVS:-${SEEDS:-200}}" --backend "${BACKEND:-c}" \
+      --out "$out/rows_agreement.json" --reports "$out" 2>&1 | tee "$out/agreement.log" \
+      | grep -v "^  " | tail -"$(( $(echo $TASKS | wc -w) + 3 ))" ;;
   cluster-scaling)  # issue 39: SUITE (mt10) over Ray vs --task-processes on this machine's GPUs,
                     # then HOST_SCENE (libero) over Ray actors vs local workers up to its cores.
                     # Needs the ray extra (its wheels carried: the machine has no network) and,

@@ -4,6 +4,8 @@
 #   part N of warp:   WARP_PART=N source benchmarks/gpu_setup.sh   (carry .warpN; the wheel's
 #                     parts may be re-split into more, smaller ones: the last brings NAME)
 #   later calls:      source benchmarks/gpu_setup.sh
+# Source it without a pipe (`source ... | tail` runs it in a subshell, which exports nothing to
+# the command after it); send its output to a file instead.
 set -e
 export PYTHONPATH=/tmp/site:$PWD PYTHONUNBUFFERED=1
 # The machine's image sets PYTHONDONTWRITEBYTECODE=1 and its packages (and ours, installed with

@@ -191,4 +191,6 @@ class WarpBackend(MjxBackend):
             "naccdmax": self.naccdmax,
             "njmax": self.njmax,
             "batch_size": self.settings.batch_size,
+            # only where set: a graph mode changes speed and memory, not the episodes
+            **({"warp_graphs": self.settings.warp_graphs} if self.settings.warp_graphs else {}),
         }

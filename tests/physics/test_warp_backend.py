@@ -115,8 +115,10 @@ def test_warp_graphs_reach_the_model_and_bad_ones_are_refused():
         backend="warp", settings=PhysicsSettings(batch_size=1, warp_graphs="staged")
     )
     assert staged.backend.mx.opt._impl.graph_mode == warp.JaxCallableGraphMode.WARP_STAGED
+    assert staged.backend.describe()["warp_graphs"] == "staged"  # the report says which ran
     default = TabletopPush(backend="warp", settings=PhysicsSettings(batch_size=1))
     assert default.backend.mx.opt._impl.graph_mode == warp.JaxCallableGraphMode.JAX  # CPU's
+    assert "warp_graphs" not in default.backend.describe()
     for make in (lambda: PhysicsSettings(warp_graphs="cuda"), lambda: RunSpec(warp_graphs="cuda")):
         with pytest.raises(
             ConfigError, match="unknown warp_graphs 'cuda'; valid: warp, staged, none"

@@ -19,6 +19,7 @@ from pathlib import Path
 from openral_mjx.benchmarks.libero.assets import load_sampled, load_task, models_root, physics_spec
 
 draws, root = int(sys.argv[1]), models_root()
+print(root.parent)  # first line: where the paths below start
 kept = set()
 for task in sys.argv[2:]:
     spec = physics_spec(load_task(task))  # the export, and the files/ its model reads
@@ -30,7 +31,6 @@ for path in sorted(kept):
     print(Path(path).relative_to(root.parent))
 EOF
 )
-[ ${#paths[@]} -gt 0 ] || exit 1
-root=$(.venv/bin/python -c "from openral_mjx.benchmarks.libero.assets import models_root; print(models_root())")
-mkdir -p .lm && tar cJf .lm/models.tar.xz -C "$(dirname "$root")" "${paths[@]}"
+[ ${#paths[@]} -gt 1 ] || exit 1
+mkdir -p .lm && tar cJf .lm/models.tar.xz -C "${paths[0]}" "${paths[@]:1}"
 du -sh .lm/models.tar.xz

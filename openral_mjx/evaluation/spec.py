@@ -12,7 +12,7 @@ import dataclasses
 
 from openral_mjx.core.errors import ConfigError
 from openral_mjx.evaluation.sequential import SequentialRule, sequential_rule
-from openral_mjx.physics.base import WARP_GRAPHS
+from openral_mjx.physics.base import check_warp_graphs
 from openral_mjx.runner import MAX_STEPS, check_batching, check_counts, check_seeds
 
 FACTOR_BINS = 5  # equal-count bins per episode factor in a report's breakdown
@@ -66,10 +66,7 @@ class RunSpec:
             raise ConfigError(
                 f"refill_every must be at most {MAX_STEPS:,}, got {self.refill_every}"
             )
-        if self.warp_graphs is not None and self.warp_graphs not in WARP_GRAPHS:
-            raise ConfigError(
-                f"unknown warp_graphs {self.warp_graphs!r}; valid: {', '.join(WARP_GRAPHS)}"
-            )
+        check_warp_graphs(self.warp_graphs)
         for name in MAX_SETTING:
             value = getattr(self, name)
             if value is not None and value < 1:

@@ -74,6 +74,12 @@ class QuantitySpec:
 WARP_GRAPHS = {"warp": "WARP", "staged": "WARP_STAGED", "none": "NONE"}
 
 
+def check_warp_graphs(value: str | None) -> None:
+    """Raise `ConfigError` unless `value` is None or one of `WARP_GRAPHS`."""
+    if value is not None and value not in WARP_GRAPHS:
+        raise ConfigError(f"unknown warp_graphs {value!r}; valid: {', '.join(WARP_GRAPHS)}")
+
+
 @dataclasses.dataclass(frozen=True)
 class PhysicsSettings:
     """How a backend runs, as opposed to what it simulates (that is the scene's MjSpec).
@@ -105,10 +111,7 @@ class PhysicsSettings:
     warp_graphs: str | None = None
 
     def __post_init__(self) -> None:
-        if self.warp_graphs is not None and self.warp_graphs not in WARP_GRAPHS:
-            raise ConfigError(
-                f"unknown warp_graphs {self.warp_graphs!r}; valid: {', '.join(WARP_GRAPHS)}"
-            )
+        check_warp_graphs(self.warp_graphs)
         for name in ("threads", "max_devices", "ccd_contacts_per_env"):
             value = getattr(self, name)
             if value is not None and value < 1:

@@ -90,7 +90,7 @@ def capped_contact_groups(m: mujoco.MjModel) -> list[tuple[int, int]]:
 class MjxBackend(PhysicsBackend):
     """`mjx.step` under `lax.fori_loop`; the state's `data` is an `mjx.Data`.
 
-    Subclasses change the MJX implementation (`impl`) by overriding `_put_model`,
+    Subclasses change the MJX implementation (`impl`) by overriding `_put`, `_put_model`,
     `_make_data` and `_data_ok`; the stepping and the readout are shared.
     """
 
@@ -135,10 +135,12 @@ class MjxBackend(PhysicsBackend):
         self._geom_ids = jnp.asarray(self.geom_ids, dtype=jnp.int32)
         self._park_qpos = jnp.asarray(reference_qpos(self.mj_model), dtype=jnp.float32)
 
+    def _put(self, m: mujoco.MjModel) -> mjx.Model:
+        """`m` put on this backend's device with its implementation, without texels."""
+        return without_texels(mjx.put_model(m, impl=self.impl, device=self.home_device()))
+
     def _put_model(self) -> mjx.Model:
-        return without_texels(
-            mjx.put_model(self.physics_model, impl=self.impl, device=self.home_device())
-        )
+        return self._put(self.physics_model)
 
     def _make_data(self) -> mjx.Data:
         return mjx.make_data(self.mx, device=self.home_device())

@@ -85,22 +85,23 @@ class WarpBackend(MjxBackend):
             names = [f"cuda:{d.local_hardware_id}" for d in gpus] or None
             drawn = self.mx
             if self.physics_model is not self.mj_model:  # cameras see the visual meshes
-                drawn = without_texels(self._warp_model(self.mj_model))
+                drawn = self._put(self.mj_model)
             self.cameras = WarpCameras(self.mj_model, drawn, self._render_specs, names)
 
     def _put_model(self) -> mjx.Model:
-        mx = without_texels(self._warp_model(self.physics_model))
+        mx = super()._put_model()
         opt_impl = mx.opt._impl.replace(warn_overflow=self._warn)
         return mx.replace(opt=mx.opt.replace(_impl=opt_impl))
 
-    def _warp_model(self, m: mujoco.MjModel) -> mjx.Model:
+    def _put(self, m: mujoco.MjModel) -> mjx.Model:
         """`m` put on this backend's device with the settings' CUDA-graph mode."""
         mode = None
         if self.settings.warp_graphs is not None:
             import warp  # installed: checked by _setup
 
             mode = getattr(warp.JaxCallableGraphMode, WARP_GRAPHS[self.settings.warp_graphs])
-        return mjx.put_model(m, impl="warp", device=self.home_device(), graph_mode=mode)
+        m_x = mjx.put_model(m, impl="warp", device=self.home_device(), graph_mode=mode)
+        return without_texels(m_x)
 
     def _make_data(self) -> mjx.Data:
         return mjx.make_data(

@@ -27,6 +27,7 @@ from openral_mjx.perf.batching import compare_batching
 from openral_mjx.perf.rays import run_rays
 from openral_mjx.perf.throughput import measure_throughput
 from openral_mjx.physics import BACKEND_NAMES, PhysicsSettings, resolve_backend_name
+from openral_mjx.physics.base import check_warp_graphs
 from openral_mjx.physics.c_backend import default_threads
 from openral_mjx.runner import MAX_ENVS, MAX_EPISODES, MAX_STEPS, check_batching
 from openral_mjx.runner.compile_cache import enable_compilation_cache
@@ -51,6 +52,11 @@ class BenchArgs:
     """Threads for MuJoCo C (default: all cores)."""
     contacts_per_env: int | None = None
     """Contact buffer per env of the warp backend (default: the scene's)."""
+    ccd_contacts_per_env: int | None = None
+    """Of those, how many may come from convex collision (GJK/EPA; default: all), as eval's."""
+    warp_graphs: str | None = None
+    """How warp replays its calls as CUDA graphs (warp, staged, none; default: MJX's), as
+    eval's."""
     out: Path = Path("results/bench.json")
     compile_cache: bool = True
     rays: bool = False
@@ -130,12 +136,7 @@ def run_batching_bench(args: BenchArgs) -> int:
         raise ConfigError(f"--n must be positive and at most --episodes, got {args.n}")
     if args.compile_cache:
         enable_compilation_cache()
-    settings = scene_settings(
-        args.scene,
-        args.contacts_per_env,
-        threads=args.threads or default_threads(),
-        batch_size=max(args.n),
-    )
+    settings = _settings(args, args.threads or default_threads())
     scene = make_scene(args.scene, backend=backend, settings=settings)
     rows = compare_batching(
         scene,
@@ -155,6 +156,7 @@ def run_batching_bench(args: BenchArgs) -> int:
         argv += ["--refill-every", str(args.refill_every)]
     if args.max_steps is not None:
         argv += ["--max-steps", str(args.max_steps)]
+    argv += _warp_argv(args)
     write_json_atomic(
         args.out,
         {
@@ -170,6 +172,28 @@ def run_batching_bench(args: BenchArgs) -> int:
     )
     print(f"results: {args.out}")
     return 0
+
+
+def _settings(args: BenchArgs, threads: int) -> PhysicsSettings:
+    """The scene's physics settings for batches up to the largest `--n`."""
+    return scene_settings(
+        args.scene,
+        args.contacts_per_env,
+        threads=threads,
+        batch_size=max(args.n),
+        ccd_contacts_per_env=args.ccd_contacts_per_env,
+        warp_graphs=args.warp_graphs,
+    )
+
+
+def _warp_argv(args: BenchArgs) -> list[str]:
+    """The warp buffer and graph flags given, for the recorded command."""
+    flags = (
+        ("--contacts-per-env", args.contacts_per_env),
+        ("--ccd-contacts-per-env", args.ccd_contacts_per_env),
+        ("--warp-graphs", args.warp_graphs),
+    )
+    return [item for flag, value in flags if value is not None for item in (flag, str(value))]
 
 
 def validate(args: BenchArgs) -> None:
@@ -190,12 +214,18 @@ def validate(args: BenchArgs) -> None:
         ("--geom-counts", args.geom_counts, 4096),
         ("--threads", (args.threads or 1,), MAX_SETTING["threads"]),
         ("--contacts-per-env", (args.contacts_per_env or 1,), MAX_SETTING["contacts_per_env"]),
+        (
+            "--ccd-contacts-per-env",
+            (args.ccd_contacts_per_env or 1,),
+            MAX_SETTING["ccd_contacts_per_env"],
+        ),
         ("--refill-every", (args.refill_every,), MAX_STEPS),
     )
     for flag, values, most in bounds:
         bad = [v for v in values if not 1 <= v <= most]
         if bad:
             raise ConfigError(f"{flag} must lie in [1, {most:,}], got {bad[0]}")
+    check_warp_graphs(args.warp_graphs)
 
 
 def run(args: BenchArgs) -> int:
@@ -212,9 +242,7 @@ def run(args: BenchArgs) -> int:
     if args.compile_cache:
         enable_compilation_cache()
     threads = args.threads or default_threads()
-    settings = scene_settings(
-        args.scene, args.contacts_per_env, threads=threads, batch_size=max(args.n)
-    )
+    settings = _settings(args, threads)
     scene = make_scene(args.scene, backend=backend, settings=settings)
     args = dataclasses.replace(args, max_steps=args.max_steps or scene.max_steps)
     c_scene = scene if backend == "c" else make_scene(args.scene, backend="c", settings=settings)
@@ -248,6 +276,7 @@ def run(args: BenchArgs) -> int:
                 *map(str, args.n),
                 "--max-steps",
                 str(args.max_steps),
+                *_warp_argv(args),
             ],
         ),
     }

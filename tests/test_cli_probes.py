@@ -183,6 +183,8 @@ BENCH = [
     (["--scene", "nope"], "'nope'"),
     (["--backend", "gpu"], "'gpu'"),
     (["--repeats", "inf"], "'inf'"),
+    (["--warp-graphs", "cuda"], "'cuda'"),
+    (["--ccd-contacts-per-env", "0"], "got 0"),
 ]
 FINETUNE = [
     (["bc", "--out", "/etc/hostname/run"], "/etc/hostname"),

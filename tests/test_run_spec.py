@@ -2,6 +2,7 @@
 cannot apply (one line naming the flag, exit 2, before any scene or worker environment)."""
 
 import dataclasses
+import inspect
 import pickle
 import sys
 
@@ -138,6 +139,8 @@ def test_every_run_flag_reaches_the_spec():
         refill_every=2,
         threads=1,
         contacts_per_env=9,
+        ccd_contacts_per_env=5,
+        warp_graphs="staged",
         devices=1,
         plots=False,
     )
@@ -152,8 +155,23 @@ def test_every_run_flag_reaches_the_spec():
         "refill_every",
         "threads",
         "contacts_per_env",
+        "ccd_contacts_per_env",
+        "warp_graphs",
         "devices",
         "backend",
     ):
         assert getattr(spec, name) == getattr(args, name), name
     assert spec.command.startswith("python -m openral_mjx.eval")
+
+
+def test_the_python_api_takes_every_spec_field():
+    """`run_evaluation` (and so `evaluate`) builds its `RunSpec` from keywords of the same
+    names: every field of the spec is one, and a bad one is refused as the CLI refuses it."""
+    from openral_mjx.evaluation.run import evaluate, run_evaluation
+
+    taken = set(inspect.signature(run_evaluation).parameters)
+    assert {f.name for f in dataclasses.fields(RunSpec)} <= taken
+    with pytest.raises(ConfigError, match="unknown warp_graphs 'cuda'"):
+        evaluate("tabletop_push", "zero", warp_graphs="cuda")
+    with pytest.raises(ConfigError, match="ccd_contacts_per_env must be >= 1, got 0"):
+        evaluate("tabletop_push", "zero", ccd_contacts_per_env=0)

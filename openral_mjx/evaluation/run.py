@@ -174,6 +174,8 @@ def run_evaluation(
     backend: str = "auto",
     threads: int | None = None,
     contacts_per_env: int | None = None,
+    ccd_contacts_per_env: int | None = None,
+    warp_graphs: str | None = None,
     devices: int | None = None,
     options: Mapping[str, Any] | None = None,
     command: str = "",
@@ -189,7 +191,9 @@ def run_evaluation(
     a slot whose episode ended takes the next seed, resets batched every `refill_every`
     control steps) or `auto` (`refill` where it applies: see `resolve_batching`); per seed
     the episodes are the same. `randomize` draws factors per seed (``NAME=LOW:HIGH``, see
-    `scenes.randomization`) on the scene, built here or given."""
+    `scenes.randomization`) on the scene, built here or given. `contacts_per_env`,
+    `ccd_contacts_per_env` and `warp_graphs` size and replay `warp`'s buffers as
+    `PhysicsSettings` takes them (for a scene built here)."""
     spec = RunSpec(
         n_envs=n_envs,
         n_episodes=n_episodes,
@@ -204,6 +208,8 @@ def run_evaluation(
         backend=backend,
         threads=threads,
         contacts_per_env=contacts_per_env,
+        ccd_contacts_per_env=ccd_contacts_per_env,
+        warp_graphs=warp_graphs,
         devices=devices,
         command=command,
     )

@@ -415,6 +415,14 @@ json.dump(d, open(sys.argv[2], 'w'), indent=1)" "/tmp/libero_act_$s.json" "$out/
       --mirror-envs "${MIRROR_ENVS:-${SEEDS:-200}}" --backend "${BACKEND:-c}" \
       --out "$out/rows_agreement.json" --reports "$out" 2>&1 | tee "$out/agreement.log" \
       | grep -v "^  " | tail -"$(( $(echo $TASKS | wc -w) + 3 ))" ;;
+  libero-warp-options)  # issue 37: TASK (libero_10/0)'s expert on warp at 200 drawn states under
+                        # CONFIGS of mjOption changes (benchmarks/libero_warp_options.py): which
+                        # keep its episodes finite (22 of 200 went non-finite on LIBERO's own);
+                        # ~90 s a config, one report each (.lm with the task's 200 draws carried)
+    python3 benchmarks/libero_warp_options.py --task "${TASK:-libero_10/0}" --out "$out" \
+      --contacts "${CONTACTS:-512}" \
+      --config ${CONFIGS:-base ccd_iterations=200 ccd_tolerance=1e-4 cone=pyramidal} 2>&1 \
+      | tee "$out/warp_options.log" | grep '^{' ;;
   cluster-scaling)  # issue 39: SUITE (mt10) over Ray vs --task-processes on this machine's GPUs,
                     # then HOST_SCENE (libero) over Ray actors vs local workers up to its cores.
                     # Needs the ray extra (its wheels carried: the machine has no network) and,

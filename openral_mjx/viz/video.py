@@ -87,13 +87,16 @@ class JointPlot:
         steps = np.arange(trace.steps + 1)
         qpos = trace.frame.get("qpos")
         colors = [f"C{i % 10}" for i in range(m.nu)]
+        # A target per actuator only where the action is one (`Scene.action_size`'s default):
+        # an end-effector action (LIBERO's 7-D OSC, MetaWorld's 4-D) is no joint's target.
+        per_actuator = trace.action.ndim == 2 and trace.action.shape[1] == m.nu
         for a in range(m.nu):
             if qpos is None or m.actuator_trntype[a] != mujoco.mjtTrn.mjTRN_JOINT:
                 continue
             joint = m.joint(int(m.actuator_trnid[a, 0]))
             q = qpos[:, int(joint.qposadr[0])]
             ax.plot(steps, q, color=colors[a], lw=1.3, label=joint.name)
-            if _is_position_servo(m, a):
+            if per_actuator and _is_position_servo(m, a):
                 target = trace.action[1:, a]
                 if m.actuator_ctrllimited[a]:
                     target = np.clip(target, *m.actuator_ctrlrange[a])
@@ -101,7 +104,8 @@ class JointPlot:
         ax.set_xlim(0, max(trace.steps, 1))
         ax.set_xlabel("control step", fontsize=8)
         ax.set_ylabel("joint position (rad / m)", fontsize=8)
-        ax.set_title("joints: position (solid), target (dashed)", fontsize=9)
+        title = "joints: position (solid), target (dashed)" if per_actuator else "joint positions"
+        ax.set_title(title, fontsize=9)
         ax.tick_params(labelsize=7)
         ax.grid(alpha=0.3)
         if ax.lines:

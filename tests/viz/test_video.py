@@ -158,3 +158,19 @@ def test_unknown_camera_and_missing_gl(scripted_eval, monkeypatch):
             gl_module.gl_backend()
     finally:
         gl_module.gl_backend.cache_clear()
+
+
+def test_joint_plot_draws_targets_only_for_per_actuator_actions(traces, scripted_eval):
+    """A joint plot draws each position servo's target from the action where the action is
+    one control per actuator, and only the joints where it is not (an end-effector action,
+    as LIBERO's 7-D OSC over 9 actuators, crashed the plot, 2026-12-02)."""
+    from openral_mjx.viz.video import JointPlot
+
+    scene, trace = scripted_eval.scene, traces[0]
+    nu = scene.mj_model.nu
+    wide = dataclasses.replace(trace, action=np.zeros((trace.steps + 1, nu + 2), np.float32))
+    narrow = dataclasses.replace(trace, action=trace.action[:, : nu - 1])
+    with_targets = JointPlot(scene, trace, 320, 200).image
+    plain = JointPlot(scene, wide, 320, 200).image
+    np.testing.assert_array_equal(JointPlot(scene, narrow, 320, 200).image, plain)  # no target
+    assert plain.shape == with_targets.shape and (plain != with_targets).any()

@@ -93,6 +93,14 @@ def test_same_initial_state_and_actions_give_libero_s_observations(
         assert not np.asarray(state.metrics["diverged"])
 
 
+def test_a_control_step_lasts_robosuite_s_control_period(scene: LiberoMjx) -> None:
+    """20 Hz, as on the host scene: the period reports, latency budgets and videos use (the
+    mirror said 2 ms, one physics step, until 2026-12-02)."""
+    from openral_mjx.benchmarks.robosuite.host_scene import CONTROL_DT
+
+    assert scene.control_dt == pytest.approx(CONTROL_DT)
+
+
 def test_reference_pose_is_a_resting_state(scene: LiberoMjx) -> None:
     """Backends park a diverged env at the model's reference pose (and warp warms up from it).
     LIBERO's MJCF starts every object at the origin, a pile of hundreds of contacts (more than

@@ -358,6 +358,12 @@ class LiberoMjx(Scene):
         return self.options.episode_limit
 
     @property
+    def control_dt(self) -> float:
+        """One control step: the scene's own `n_substeps` physics steps (the backend steps
+        one at a time, so its `control_dt` is a physics step's)."""
+        return float(self.mj_model.opt.timestep) * self.n_substeps
+
+    @property
     def action_size(self) -> int:
         return 7
 

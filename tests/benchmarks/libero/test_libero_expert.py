@@ -89,6 +89,10 @@ def test_coverage_names_what_the_expert_plays() -> None:
     assert coverage("libero_90/22") == "not covered"  # shut a bottom drawer
     assert coverage("libero_goal/0") == "not covered"  # open a drawer
     assert coverage("libero_90/35") == "not covered"  # open the microwave
+    # the bowl settles half under the cabinet's top in its open drawer: the fingers meet it
+    assert coverage("libero_spatial/4") == "not covered"
+    assert coverage("libero_spatial/0") == "covered"  # a bowl between a plate and a ramekin
+    assert coverage("libero_object/3") == "covered"  # beside a taller bottle the palm passes
     assert plan_for("libero_goal/0") is None
     # The factory reads the scene's name, options and task before anything else: a stand-in
     # with those spares building the scene (~35 s) only to be refused.

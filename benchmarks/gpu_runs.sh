@@ -409,12 +409,17 @@ json.dump(d, open(sys.argv[2], 'w'), indent=1)" "/tmp/libero_act_$s.json" "$out/
                      # same cores), after gpu_setup.sh with .lh1-.lh3 and .gl carried. Exports
                      # and draws are made here by LIBERO's worker where none were carried
                      # (~25 s a task, ~2.5 s a draw per core); each task's row goes to
-                     # $out/rows_agreement.json as it ends, both reports to $out
-    python3 -m openral_mjx.benchmarks.libero.agreement --tasks ${TASKS:?TASKS} \
-      --seeds "${SEEDS:-200}" --protocol sampled --host-envs "$(nproc)" \
+                     # /tmp/rows_agreement.json as it ends (copied to $out), both reports to
+                     # $out. A later call with the same TASKS resumes: rows already made are
+                     # kept, not run again. A libero_10 task takes ~8.5 min (LIBERO's 16
+                     # workers: 89 s start, 292 s of episodes; the mirror 123 s), so LIMIT
+                     # (default 560 s) stops the run inside the call and keeps what ended
+    timeout "${LIMIT:-560}" python3 -m openral_mjx.benchmarks.libero.agreement \
+      --tasks ${TASKS:?TASKS} --seeds "${SEEDS:-200}" --protocol sampled --host-envs "$(nproc)" \
       --mirror-envs "${MIRROR_ENVS:-${SEEDS:-200}}" --backend "${BACKEND:-c}" \
-      --out "$out/rows_agreement.json" --reports "$out" 2>&1 | tee "$out/agreement.log" \
-      | grep -v "^  " | tail -"$(( $(echo $TASKS | wc -w) + 3 ))" ;;
+      --out /tmp/rows_agreement.json --resume --reports "$out" 2>&1 | tee "$out/agreement.log" \
+      | grep -v "^  " | tail -"$(( $(echo $TASKS | wc -w) + 4 ))"
+    cp /tmp/rows_agreement.json "$out/" 2>/dev/null ;;
   libero-warp-options)  # issue 37: TASK (libero_10/0)'s expert on warp at 200 drawn states under
                         # CONFIGS of mjOption changes (benchmarks/libero_warp_options.py): which
                         # keep its episodes finite (22 of 200 went non-finite on LIBERO's own);

@@ -24,7 +24,7 @@ import argparse
 import contextlib
 import json
 import sys
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterable, Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -250,6 +250,7 @@ def comparison_row(host: EvalReport, mirror: EvalReport) -> dict[str, Any]:
         "task": mirror.task,
         "coverage": coverage(mirror.task),
         "backend": mirror.backend,
+        "protocol": mirror.options.get("protocol", "standard"),
         "mujoco": mirror.versions.get("mujoco"),
         "seeds": rc.common_seeds,
         "libero_rate": host.success_rate,
@@ -315,10 +316,23 @@ def format_table(rows: Sequence[dict[str, Any]]) -> str:
     return "\n".join(lines)
 
 
-def suite_tasks(suite: str) -> list[str]:
+def suite_tasks(suite: str) -> Iterator[str]:
     """The tasks of LIBERO suite `suite` (`scene_suite`'s names) the expert covers, wholly or
-    partly, in order."""
-    return [t for t in scene_suite("libero_mjx", suite) if coverage(t) != "not covered"]
+    partly, in order, each looked at (its export made) only when the one before has run."""
+    return (t for t in scene_suite("libero_mjx", suite) if coverage(t) != "not covered")
+
+
+def kept_rows(path: Path | None, seeds: int, backend: str, protocol: str) -> list[dict]:
+    """`--resume`: the rows in `path` (an earlier run's `--out`) made as this run would make
+    them (the same seeds, backend and protocol), whose tasks are not run again."""
+    if path is None or not path.exists():
+        return []
+    try:
+        rows = json.loads(path.read_text())
+    except (OSError, ValueError) as e:
+        raise ConfigError(f"--resume: cannot read the rows in {path}: {e}") from None
+    same = (seeds, backend, protocol)
+    return [r for r in rows if (r.get("seeds"), r.get("backend"), r.get("protocol")) == same]
 
 
 def main(argv: Sequence[str] | None = None) -> None:
@@ -360,6 +374,12 @@ def main(argv: Sequence[str] | None = None) -> None:
     ap.add_argument("--protocol", choices=("standard", "sampled"), default="standard")
     ap.add_argument("--out", type=Path, default=None, help="JSON file for the rows")
     ap.add_argument(
+        "--resume",
+        action="store_true",
+        help="keep the rows --out already holds for these seeds, backend and protocol, and run "
+        "only the other tasks (a run cut short goes on where it stopped)",
+    )
+    ap.add_argument(
         "--reports", type=Path, default=None, help="folder for both reports of each task"
     )
     a = ap.parse_args(argv)
@@ -370,13 +390,29 @@ def main(argv: Sequence[str] | None = None) -> None:
                 write_text_atomic(a.out, json.dumps(rows, indent=1))
             print(format_table(rows))
             return
-        tasks = a.tasks or suite_tasks(a.suite)
-    except ConfigError as e:  # a bad or unpaired report, an unknown suite: one line, exit 2
+        if a.resume and (a.out is None or a.replay):
+            raise ConfigError(
+                "--resume keeps the closed-loop rows of --out: give --out, not --replay"
+            )
+        rows = kept_rows(a.out, a.seeds, a.backend, a.protocol) if a.resume else []
+        _run_tasks(a, a.tasks or suite_tasks(a.suite), rows)
+    except ConfigError as e:
+        # a bad or unpaired report, an unknown suite, a task that cannot run (its export, its
+        # draws; the rows before it are in --out): one line, exit 2
         print(f"error: {e}", file=sys.stderr)
         raise SystemExit(2) from None
+
+
+def _run_tasks(a: argparse.Namespace, tasks: Iterable[str], rows: list[dict[str, Any]]) -> None:
+    """Each task's row (both scenes run, or the replay), printed and written to `a.out` as it
+    ends; `rows` (kept by `--resume`) first, their tasks not run again; then the table."""
     table = format_replay_table if a.replay else format_table
-    rows = []
+    done = {r["task"] for r in rows}
+    if done:
+        print(f"kept {len(done)} rows of {a.out}: {', '.join(sorted(done))}", flush=True)
     for task in tasks:
+        if task in done:
+            continue
         if a.replay:
             row = replay_row(task, a.replay_seed, a.backend)
         else:

@@ -5,6 +5,7 @@ suites' order, and a mirror report with no such partner refused in one line."""
 from __future__ import annotations
 
 import dataclasses
+import json
 
 import numpy as np
 import pytest
@@ -74,3 +75,31 @@ def test_a_mirror_report_without_a_partner_is_one_line_exit_2(base, tmp_path, ca
     err = capsys.readouterr().err
     assert exc.value.code == 2 and len(err.strip().splitlines()) == 1
     assert "no LIBERO report of task 'libero_object/0'" in err
+
+
+def test_resume_runs_only_the_tasks_without_a_row(tmp_path, monkeypatch, capsys):
+    """`--resume` keeps the rows `--out` holds for the same seeds, backend and protocol and
+    runs the other tasks (a row of other seeds is run again), writing every row back."""
+    from openral_mjx.benchmarks.libero import agreement
+
+    out = tmp_path / "rows.json"
+    kept = {"task": "libero_object/0", "seeds": 200, "backend": "c", "protocol": "sampled"}
+    other = {**kept, "task": "libero_object/1", "seeds": 50}  # other seeds: run again
+    out.write_text(json.dumps([kept, other]))
+    ran = []
+
+    def row(task, seeds, backend, *args):
+        ran.append(task)
+        return {**kept, "task": task}, None, None
+
+    monkeypatch.setattr(agreement, "agreement_row", row)
+    monkeypatch.setattr(agreement, "format_table", lambda rows: "\n".join(r["task"] for r in rows))
+    tasks = ["libero_object/0", "libero_object/1", "libero_object/2"]
+    argv = ["--tasks", *tasks, "--protocol", "sampled", "--out", str(out), "--resume"]
+    main(argv)
+    assert ran == tasks[1:]
+    assert [r["task"] for r in json.loads(out.read_text())] == tasks
+    assert "kept 1 rows" in capsys.readouterr().out
+    with pytest.raises(SystemExit) as exc:  # nothing to resume from
+        main(["--tasks", *tasks, "--resume"])
+    assert exc.value.code == 2

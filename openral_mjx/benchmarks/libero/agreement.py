@@ -269,21 +269,23 @@ def comparison_row(host: EvalReport, mirror: EvalReport) -> dict[str, Any]:
 
 def rows_from_reports(paths: Sequence[Path]) -> list[dict[str, Any]]:
     """The table's rows from stored reports (`--reports` folders, `eval --out` files): each
-    `libero_mjx` report against the latest `libero` report of its task it pairs with, in the
-    suites' order. A mirror report with no such LIBERO report is a `ConfigError`."""
+    `libero_mjx` report against the latest `libero` report of its task and policy it pairs
+    with, in the suites' order. A mirror report with no such LIBERO report is a
+    `ConfigError`."""
     reports = [load_report(p) for p in paths]
     hosts = sorted((r for r in reports if r.scene == "libero"), key=lambda r: r.created_at)
     rows = []
     for mirror in (r for r in reports if r.scene == "libero_mjx"):
         row = None
-        for host in reversed([h for h in hosts if h.task == mirror.task]):
+        same = [h for h in hosts if (h.task, h.policy) == (mirror.task, mirror.policy)]
+        for host in reversed(same):
             with contextlib.suppress(ConfigError):  # another protocol: not its pair
                 row = comparison_row(host, mirror)
                 break
         if row is None:
             raise ConfigError(
                 f"no LIBERO report of task {mirror.task!r} among the reports pairs with the "
-                f"mirror's on {mirror.backend} (same task and protocol)"
+                f"mirror's on {mirror.backend} (same task, policy and protocol)"
             )
         rows.append(row)
     return sorted(rows, key=_order)

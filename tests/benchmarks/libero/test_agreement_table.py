@@ -14,6 +14,7 @@ from worker_envs import require_worker_envs
 
 from openral_mjx.benchmarks.libero.agreement import main, rows_from_reports
 from openral_mjx.benchmarks.libero.assets import ENV
+from openral_mjx.core.errors import ConfigError
 from openral_mjx.evaluation import evaluate
 from openral_mjx.report import EvalReport, save_report
 from openral_mjx.stats import paired_comparison
@@ -75,6 +76,12 @@ def test_a_mirror_report_without_a_partner_is_one_line_exit_2(base, tmp_path, ca
     err = capsys.readouterr().err
     assert exc.value.code == 2 and len(err.strip().splitlines()) == 1
     assert "no LIBERO report of task 'libero_object/0'" in err
+    other = dataclasses.replace(  # the same protocol, another policy: not its pair either
+        _report(base, MIRROR, "libero_mjx", "libero_object/0", 8), policy="mlp:/tmp/mlp"
+    )
+    save_report(other, tmp_path / "mirror.json")
+    with pytest.raises(ConfigError, match="same task, policy and protocol"):
+        rows_from_reports([tmp_path / "host.json", tmp_path / "mirror.json"])
 
 
 def test_resume_runs_only_the_tasks_without_a_row(tmp_path, monkeypatch, capsys):

@@ -306,9 +306,9 @@ def _grasp_blocked(
     settle steps have let the objects come to rest (the robot held). A bowl that settles in
     a cabinet's open top drawer sits half under the cabinet's top, on whose edge the inner
     finger stops 3.6 cm short of the grasp (`libero_spatial/4`: 0 of 200 on LIBERO and on
-    the mirror; the bounds overlap by 1 mm). The
-    palm is left out: its mesh's bounds, 21 cm long, meet a taller neighbour the real palm
-    passes over (`libero_object/3`'s salad dressing, where the expert succeeds 200 of 200)."""
+    the mirror; the bounds overlap by 1 mm). The palm is left out: its mesh's bounds, 21 cm
+    long, meet a taller neighbour the real palm passes over (`libero_object/3`'s salad
+    dressing, where the expert succeeds 200 of 200)."""
     site = d.site_xpos[m.site(meta["eef_site"]).id].copy()
     fingers = [int(m.joint(j).bodyid[0]) for j in meta["gripper_joints"]]
     hand = [(low - site, high - site) for f in fingers for low, high in _geom_boxes(m, d, f)]

@@ -324,17 +324,20 @@ def suite_tasks(suite: str) -> Iterator[str]:
     return (t for t in scene_suite("libero_mjx", suite) if coverage(t) != "not covered")
 
 
-def kept_rows(path: Path | None, seeds: int, backend: str, protocol: str) -> list[dict]:
-    """`--resume`: the rows in `path` (an earlier run's `--out`) made as this run would make
-    them (the same seeds, backend and protocol), whose tasks are not run again."""
+def kept_rows(
+    path: Path | None, seeds: int, backend: str, protocol: str
+) -> tuple[list[dict[str, Any]], set[str]]:
+    """`--resume`: the rows in `path` (an earlier run's `--out`), all kept, and the tasks
+    whose row was made as this run would make it (the same seeds, backend and protocol),
+    which are not run again."""
     if path is None or not path.exists():
-        return []
+        return [], set()
     try:
         rows = json.loads(path.read_text())
     except (OSError, ValueError) as e:
         raise ConfigError(f"--resume: cannot read the rows in {path}: {e}") from None
-    same = (seeds, backend, protocol)
-    return [r for r in rows if (r.get("seeds"), r.get("backend"), r.get("protocol")) == same]
+    made = lambda r: (r.get("seeds"), r.get("backend"), r.get("protocol"))  # noqa: E731
+    return rows, {r["task"] for r in rows if made(r) == (seeds, backend, protocol)}
 
 
 def main(argv: Sequence[str] | None = None) -> None:
@@ -396,8 +399,8 @@ def main(argv: Sequence[str] | None = None) -> None:
             raise ConfigError(
                 "--resume keeps the closed-loop rows of --out: give --out, not --replay"
             )
-        rows = kept_rows(a.out, a.seeds, a.backend, a.protocol) if a.resume else []
-        _run_tasks(a, a.tasks or suite_tasks(a.suite), rows)
+        rows, done = kept_rows(a.out, a.seeds, a.backend, a.protocol) if a.resume else ([], set())
+        _run_tasks(a, a.tasks or suite_tasks(a.suite), rows, done)
     except ConfigError as e:
         # a bad or unpaired report, an unknown suite, a task that cannot run (its export, its
         # draws; the rows before it are in --out): one line, exit 2
@@ -405,11 +408,13 @@ def main(argv: Sequence[str] | None = None) -> None:
         raise SystemExit(2) from None
 
 
-def _run_tasks(a: argparse.Namespace, tasks: Iterable[str], rows: list[dict[str, Any]]) -> None:
+def _run_tasks(
+    a: argparse.Namespace, tasks: Iterable[str], rows: list[dict[str, Any]], done: set[str]
+) -> None:
     """Each task's row (both scenes run, or the replay), printed and written to `a.out` as it
-    ends; `rows` (kept by `--resume`) first, their tasks not run again; then the table."""
+    ends, after `rows` (kept by `--resume`; the tasks in `done` are not run again); then the
+    table."""
     table = format_replay_table if a.replay else format_table
-    done = {r["task"] for r in rows}
     if done:
         print(f"kept {len(done)} rows of {a.out}: {', '.join(sorted(done))}", flush=True)
     for task in tasks:

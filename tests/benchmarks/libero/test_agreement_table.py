@@ -85,8 +85,8 @@ def test_a_mirror_report_without_a_partner_is_one_line_exit_2(base, tmp_path, ca
 
 
 def test_resume_runs_only_the_tasks_without_a_row(tmp_path, monkeypatch, capsys):
-    """`--resume` keeps the rows `--out` holds for the same seeds, backend and protocol and
-    runs the other tasks (a row of other seeds is run again), writing every row back."""
+    """`--resume` keeps the rows `--out` holds and runs the tasks without one for the same
+    seeds, backend and protocol (a row of other seeds stays, its task is run again)."""
     from openral_mjx.benchmarks.libero import agreement
 
     out = tmp_path / "rows.json"
@@ -105,7 +105,12 @@ def test_resume_runs_only_the_tasks_without_a_row(tmp_path, monkeypatch, capsys)
     argv = ["--tasks", *tasks, "--protocol", "sampled", "--out", str(out), "--resume"]
     main(argv)
     assert ran == tasks[1:]
-    assert [r["task"] for r in json.loads(out.read_text())] == tasks
+    assert [(r["task"], r["seeds"]) for r in json.loads(out.read_text())] == [
+        ("libero_object/0", 200),
+        ("libero_object/1", 50),
+        ("libero_object/1", 200),
+        ("libero_object/2", 200),
+    ]
     assert "kept 1 rows" in capsys.readouterr().out
     with pytest.raises(SystemExit) as exc:  # nothing to resume from
         main(["--tasks", *tasks, "--resume"])

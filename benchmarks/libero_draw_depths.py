@@ -18,7 +18,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from openral_mjx.benchmarks.libero.assets import _read_sampled, _task_dir, load_task, physics_spec
+from openral_mjx.benchmarks.libero.assets import _read_sampled, load_task, models_root, physics_spec
 
 SEEDS = 20
 DEEP = 0.01  # m
@@ -39,7 +39,7 @@ def depths(task: str, draws: dict[str, np.ndarray]) -> np.ndarray:
 
 
 def main() -> None:
-    root = _task_dir("libero_10/0").parents[1]
+    root = models_root()
     for f in sorted(glob.glob(str(root / "*" / "*" / "sampled.npz"))):
         task = "/".join(Path(f).parts[-3:-1])
         draws = _read_sampled(Path(f))

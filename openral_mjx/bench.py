@@ -18,7 +18,7 @@ from pathlib import Path
 import jax
 import tyro
 
-from openral_mjx.cli.common import command_line, guarded, parse
+from openral_mjx.cli.common import command_line, given_flags, guarded, parse
 from openral_mjx.core.errors import ConfigError, unknown
 from openral_mjx.core.files import check_writable, write_json_atomic
 from openral_mjx.evaluation.provenance import device_description, package_versions
@@ -188,12 +188,13 @@ def _settings(args: BenchArgs, threads: int) -> PhysicsSettings:
 
 def _warp_argv(args: BenchArgs) -> list[str]:
     """The warp buffer and graph flags given, for the recorded command."""
-    flags = (
-        ("--contacts-per-env", args.contacts_per_env),
-        ("--ccd-contacts-per-env", args.ccd_contacts_per_env),
-        ("--warp-graphs", args.warp_graphs),
+    return given_flags(
+        (
+            ("--contacts-per-env", args.contacts_per_env),
+            ("--ccd-contacts-per-env", args.ccd_contacts_per_env),
+            ("--warp-graphs", args.warp_graphs),
+        )
     )
-    return [item for flag, value in flags if value is not None for item in (flag, str(value))]
 
 
 def validate(args: BenchArgs) -> None:

@@ -10,7 +10,7 @@ import math
 import re
 import shlex
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from typing import Any, NoReturn, TypeVar
 
 from rich.console import Console
@@ -117,6 +117,12 @@ def check_numbers(args: Any) -> None:
             flag = "--" + field.name.replace("_", "-")
             shown = " ".join(map(str, values))
             raise ConfigError(f"{flag} must be a finite number, got {shown}")
+
+
+def given_flags(pairs: Iterable[tuple[str, Any]]) -> list[str]:
+    """``[flag, str(value), ...]`` for each `(flag, value)` whose value is not None: the
+    options a run was given, for the command line that reproduces it."""
+    return [item for flag, value in pairs if value is not None for item in (flag, str(value))]
 
 
 def command_line(module: str, args: list[str]) -> str:

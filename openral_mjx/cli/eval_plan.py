@@ -12,7 +12,7 @@ import re
 import sys
 from pathlib import Path
 
-from openral_mjx.cli.common import command_line
+from openral_mjx.cli.common import command_line, given_flags
 from openral_mjx.cli.eval_args import EvalArgs
 from openral_mjx.core.errors import ConfigError
 from openral_mjx.core.files import check_writable
@@ -380,32 +380,32 @@ def _reproduce(args: EvalArgs, backend: str, out: Path) -> str:
     """The command line that reproduces this run (the report's `command`)."""
     argv = ["--scene", args.scene, "--policy", args.policy, "--backend", backend]
     argv += ["--n-envs", str(args.n_envs), "--seed", str(args.seed), "--out", str(out)]
-    for flag, value in (
-        ("--task", args.task),
-        ("--suite", args.suite),
-        ("--n-episodes", args.n_episodes),
-        ("--target-halfwidth", args.target_halfwidth),
-        ("--max-episodes", args.max_episodes),
-        ("--max-steps", args.max_steps),
-        ("--robot", args.robot),
-        ("--robot-mjcf", args.robot_mjcf),
-        ("--config", args.config),
-        ("--threads", args.threads),
-        ("--contacts-per-env", args.contacts_per_env),
-        ("--ccd-contacts-per-env", args.ccd_contacts_per_env),
-        ("--warp-graphs", args.warp_graphs),
-        ("--devices", args.devices),
-        ("--processes", args.processes if args.processes != 1 else None),
-        ("--distributed", args.distributed),
-        ("--task-processes", args.task_processes if args.task_processes != 1 else None),
-        ("--cluster", args.cluster),
-        ("--factor-bins", args.factor_bins if args.factor_bins != 5 else None),
-        ("--frames", args.frames or None),
-        ("--batching", args.batching if args.batching != "auto" else None),
-        ("--refill-every", args.refill_every if args.refill_every != 1 else None),
-    ):
-        if value is not None:
-            argv += [flag, str(value)]
+    argv += given_flags(
+        (
+            ("--task", args.task),
+            ("--suite", args.suite),
+            ("--n-episodes", args.n_episodes),
+            ("--target-halfwidth", args.target_halfwidth),
+            ("--max-episodes", args.max_episodes),
+            ("--max-steps", args.max_steps),
+            ("--robot", args.robot),
+            ("--robot-mjcf", args.robot_mjcf),
+            ("--config", args.config),
+            ("--threads", args.threads),
+            ("--contacts-per-env", args.contacts_per_env),
+            ("--ccd-contacts-per-env", args.ccd_contacts_per_env),
+            ("--warp-graphs", args.warp_graphs),
+            ("--devices", args.devices),
+            ("--processes", args.processes if args.processes != 1 else None),
+            ("--distributed", args.distributed),
+            ("--task-processes", args.task_processes if args.task_processes != 1 else None),
+            ("--cluster", args.cluster),
+            ("--factor-bins", args.factor_bins if args.factor_bins != 5 else None),
+            ("--frames", args.frames or None),
+            ("--batching", args.batching if args.batching != "auto" else None),
+            ("--refill-every", args.refill_every if args.refill_every != 1 else None),
+        )
+    )
     if args.sweep is not None:
         argv += ["--sweep", args.sweep]
     if args.decide:
